@@ -1,0 +1,1 @@
+"""Services: master, controller and hand wiring (the composition root)."""

@@ -1,0 +1,1 @@
+"""Physics: the ReFlex finger and hand model, operator model and servo emulator."""

@@ -1,0 +1,1 @@
+"""One module per ``teleop`` subcommand (see :mod:`teleop.cli`)."""

@@ -1,0 +1,89 @@
+"""Options and output helpers shared by the subcommands."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from teleop.config import TeleopConfig, load_config
+from teleop.errors import UserInputError
+
+
+def add_config_options(p: argparse.ArgumentParser) -> None:
+    """``--config FILE`` and repeatable ``--set key=value``."""
+    p.add_argument("--config", type=Path, default=None, metavar="FILE",
+                   help="TOML config file (default: built-in defaults, as config/default.toml)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override one config key, e.g. --set links.master_controller.delay_s=0.1"
+                   " (repeatable)")
+
+
+def add_json_option(p: argparse.ArgumentParser) -> None:
+    """``--json PATH`` ('-' for stdout)."""
+    p.add_argument("--json", dest="json_path", default=None, metavar="PATH",
+                   help="write results as JSON to PATH ('-' for stdout)")
+
+
+def config_from_args(args: argparse.Namespace) -> TeleopConfig:
+    """Load the config named by ``--config``/``--set``."""
+    return load_config(args.config, args.overrides)
+
+
+def _clean(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if hasattr(obj, "item") and callable(obj.item):  # numpy scalar
+        return _clean(obj.item())
+    return obj
+
+
+def write_json(path: str | None, obj: Any) -> None:
+    """Write ``obj`` as JSON to ``path`` ('-' for stdout); nothing when ``path`` is None."""
+    if path is None:
+        return
+    text = json.dumps(_clean(obj), indent=2, allow_nan=False)
+    if path == "-":
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+        return
+    try:
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot write JSON ({exc.strerror})") from None
+
+
+def info(args: argparse.Namespace, text: str) -> None:
+    """Human-readable progress; goes to stderr when JSON is on stdout."""
+    stream = sys.stderr if getattr(args, "json_path", None) == "-" else sys.stdout
+    print(text, file=stream, flush=True)
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number > 0")
+    return value
+
+
+def nonneg_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a finite number >= 0")
+    return value

@@ -1,0 +1,67 @@
+"""Config section for the hand service and its backends."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from teleop.config.loader import param, section
+
+
+@dataclass(frozen=True, slots=True)
+class ObjectConfig:
+    """The object the simulated hand grasps."""
+
+    kind: str = param("cylinder", "object shape", choices=("none", "cylinder", "block"))
+    x_m: float = param(0.045, "object centre (cylinder) or face (block) along the palm normal "
+                       "from the proximal axle, in the finger's plane", unit="m", lo=-1.0, hi=1.0)
+    y_m: float = param(0.03, "object centre offset across the finger's zero line", unit="m",
+                       lo=-1.0, hi=1.0)
+    radius_m: float = param(0.02, "cylinder radius", unit="m", lo=1e-3, hi=0.5)
+    stiffness_n_per_m: float = param(2000.0, "contact stiffness", unit="N/m", lo=1.0, hi=1e7)
+    damping_n_s_per_m: float = param(5.0, "contact damping", unit="N s/m", lo=0.0, hi=1e5)
+
+
+@dataclass(frozen=True, slots=True)
+class SimHandConfig:
+    """The simulated hand built from the finger model."""
+
+    physics_rate_hz: float = param(1000.0, "physics integration rate", unit="Hz", lo=100.0,
+                                   hi=100000.0)
+    command_delay: bool = param(False, "reproduce the stock driver's 0.09 s command delay")
+    noise: bool = param(True, "add sensor noise and quantisation")
+    object: ObjectConfig = section(ObjectConfig, "the grasped object")
+
+
+@dataclass(frozen=True, slots=True)
+class DynamixelConfig:
+    """Dynamixel MX-28 servos driven through dynamixel-sdk (the direct-USB ReFlex layout)."""
+
+    port: str = param("/dev/ttyUSB0", "serial port of the servo bus")
+    baud_rate: int = param(57142, "serial baud rate", unit="bit/s", lo=1200, hi=4500000)
+    protocol: float = param(1.0, "Dynamixel protocol version", lo=1.0, hi=2.0)
+    ids: tuple[int, ...] = param((1, 2, 3, 4), "servo IDs: finger 1, 2, 3, preshape")
+    inversion: tuple[int, ...] = param((1, -1, 1, -1), "direction sign per motor")
+    finger_ratio: float = param(1.42, "motor-to-joint ratio of the finger motors", lo=0.1, hi=10.0)
+    preshape_ratio: float = param(1.5, "motor-to-joint ratio of the preshape motor", lo=0.1,
+                                  hi=10.0)
+    finger_travel_rad: float = param(3.6, "finger joint travel limit", unit="rad", lo=0.0, hi=10.0)
+    preshape_travel_rad: float = param(1.75, "preshape travel limit", unit="rad", lo=0.0, hi=10.0)
+    overload_finger_units: float = param(350.0, "finger load above which the target backs off",
+                                         unit="load units", lo=0.0, hi=1023.0)
+    overload_preshape_units: float = param(400.0, "preshape load threshold", unit="load units",
+                                           lo=0.0, hi=1023.0)
+    command_pacing: bool = param(False, "pace commands like the stock driver (0.09 s delay)")
+    max_failures: int = param(5, "consecutive bus failures before the hand goes safe", lo=1)
+    retries: int = param(2, "retries of one failed bus transaction", lo=0, hi=100)
+    timeout_s: float = param(0.02, "serial reply timeout", unit="s", lo=0.001, hi=5.0)
+
+
+@dataclass(frozen=True, slots=True)
+class HandConfig:
+    """The hand service."""
+
+    backend: str = param("sim", "hand backend (registry key)", choices=("sim", "dynamixel"))
+    state_rate_hz: float = param(40.0, "hand state publication rate", unit="Hz", lo=1.0,
+                                 hi=1000.0)
+    sim: SimHandConfig = section(SimHandConfig, "simulated hand backend")
+    dynamixel: DynamixelConfig = section(DynamixelConfig, "dynamixel backend")

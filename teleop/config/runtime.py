@@ -1,0 +1,51 @@
+"""Config sections for safety, dashboards, recordings and the delay sweep."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from teleop.config.loader import param
+
+
+@dataclass(frozen=True, slots=True)
+class SafetyConfig:
+    """Watchdogs, safe states and message validation limits."""
+
+    command_timeout_s: float | None = param(
+        None, "no valid command for this long and the hand goes safe (unset: 4x the command "
+        "period plus the configured delay)", unit="s", lo=0.0, hi=60.0)
+    state_timeout_s: float | None = param(
+        None, "no valid hand state for this long and the master force ramps to zero (unset: "
+        "4x the state period plus the configured delay)", unit="s", lo=0.0, hi=60.0)
+    hand_safe_state: str = param("hold", "what the hand does when commands stop",
+                                 choices=("hold", "open"))
+    force_ramp_s: float = param(0.2, "time the master force takes to ramp to zero", unit="s",
+                                lo=0.0, hi=10.0)
+    energy_jump_max_j: float = param(10.0, "largest accepted increase of a peer's cumulative "
+                                     "energy total in one message", unit="J", lo=0.0, hi=1e6)
+
+
+@dataclass(frozen=True, slots=True)
+class DashboardConfig:
+    """Live rerun dashboard."""
+
+    mode: str = param("auto", "spawn a viewer, serve a web viewer, save to a file, or off "
+                      "(auto: spawn with a display, else save)",
+                      choices=("auto", "spawn", "web", "save", "off"))
+    path: str = param("teleop.rrd", "file written in save mode")
+    rate_hz: float = param(50.0, "rate at which services log to the dashboard", unit="Hz",
+                           lo=1.0, hi=1000.0)
+
+
+@dataclass(frozen=True, slots=True)
+class SweepConfig:
+    """The delay-sweep stability test."""
+
+    delays_s: tuple[float, ...] = param(
+        (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 0.75, 1.0),
+        "one-way master<->controller delays", unit="s", lo=0.0, hi=10.0)
+    losses: tuple[float, ...] = param((0.0, 0.2), "loss probabilities", lo=0.0, hi=1.0)
+    jitter_s: float = param(0.0, "jitter scale applied at every point", unit="s", lo=0.0)
+    controllers: tuple[str, ...] = param(("two-layer", "direct", "tdpa"), "controllers swept",
+                                         choices=("two-layer", "direct", "tdpa", "wave"))
+    duration_s: float = param(6.0, "simulated time per run", unit="s", lo=0.1, hi=3600.0)

@@ -1,0 +1,196 @@
+"""Recordings: the CSV format shared by `teleop sim`, `teleop up --record` and `teleop diagnose`.
+
+One row per sample; a header row of column names with SI units in the name (``t_s``,
+``tendon_force_n``, ...); ``t_s`` is required and strictly increasing; lines starting with ``#``
+are comments (``# key: value`` lines are kept as metadata).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from teleop.errors import RecordingError
+
+__all__ = ["Recording", "read_recording", "write_recording", "RecordingWriter"]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Named columns sampled at ``t_s``; ``data`` has one column per name."""
+
+    columns: tuple[str, ...]
+    data: NDArray[np.float64]
+    meta: tuple[tuple[str, str], ...] = ()
+    source: str = field(default="<memory>", compare=False)
+
+    def __post_init__(self) -> None:
+        if self.data.ndim != 2 or self.data.shape[1] != len(self.columns):
+            raise RecordingError(f"{self.source}: data shape {self.data.shape} does not match "
+                                 f"{len(self.columns)} columns")
+
+    @property
+    def t_s(self) -> NDArray[np.float64]:
+        """Sample times."""
+        return self.column("t_s")
+
+    def __len__(self) -> int:
+        return int(self.data.shape[0])
+
+    def has(self, name: str) -> bool:
+        """Whether column ``name`` exists."""
+        return name in self.columns
+
+    def column(self, name: str) -> NDArray[np.float64]:
+        """The values of column ``name`` (a RecordingError naming it when missing)."""
+        try:
+            idx = self.columns.index(name)
+        except ValueError:
+            raise RecordingError(f"{self.source}: no column {name!r} (columns: "
+                                 f"{', '.join(self.columns)})") from None
+        return self.data[:, idx]
+
+    def meta_value(self, key: str, default: str | None = None) -> str | None:
+        """A metadata value from a ``# key: value`` comment."""
+        for k, v in self.meta:
+            if k == key:
+                return v
+        return default
+
+    @classmethod
+    def from_columns(cls, columns: Mapping[str, Sequence[float] | NDArray[np.float64]],
+                     meta: Iterable[tuple[str, str]] = ()) -> Recording:
+        """Build from a mapping of equal-length columns (``t_s`` first is conventional)."""
+        names = tuple(columns)
+        data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
+        return cls(names, data, tuple(meta))
+
+
+def _check_time(t: NDArray[np.float64], where: str) -> None:
+    if not np.all(np.isfinite(t)):
+        bad = int(np.argmax(~np.isfinite(t)))
+        raise RecordingError(f"{where}: t_s is not finite at row {bad + 1}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        bad = int(np.argmax(steps <= 0))
+        raise RecordingError(f"{where}: t_s is not strictly increasing at row {bad + 2} "
+                             f"({t[bad]} then {t[bad + 1]})")
+
+
+def read_recording(path: Path | str, *, allow_nan: bool = True) -> Recording:
+    """Read and validate a recording CSV; every problem is a one-line RecordingError."""
+    path = Path(path)
+    where = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise RecordingError(f"{where}: file not found") from None
+    except IsADirectoryError:
+        raise RecordingError(f"{where}: is a directory, expected a CSV file") from None
+    except UnicodeDecodeError:
+        raise RecordingError(f"{where}: not a text CSV file") from None
+    except OSError as exc:
+        raise RecordingError(f"{where}: cannot read ({exc.strerror})") from None
+    meta: list[tuple[str, str]] = []
+    header: list[str] | None = None
+    rows: list[list[float]] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            body = line[1:].strip()
+            if ":" in body:
+                k, v = body.split(":", 1)
+                meta.append((k.strip(), v.strip()))
+            continue
+        cells = [c.strip() for c in line.split(",")]
+        if header is None:
+            if any(not c for c in cells):
+                raise RecordingError(f"{where}:{lineno}: empty column name in header")
+            if len(set(cells)) != len(cells):
+                raise RecordingError(f"{where}:{lineno}: duplicate column name in header")
+            header = cells
+            continue
+        if len(cells) != len(header):
+            raise RecordingError(f"{where}:{lineno}: {len(cells)} values, header has "
+                                 f"{len(header)} columns")
+        try:
+            row = [float(c) if c else math.nan for c in cells]
+        except ValueError:
+            raise RecordingError(f"{where}:{lineno}: not a number in {line[:60]!r}") from None
+        rows.append(row)
+    if header is None:
+        raise RecordingError(f"{where}: no header row")
+    if "t_s" not in header:
+        raise RecordingError(f"{where}: no t_s column (columns: {', '.join(header)})")
+    if not rows:
+        raise RecordingError(f"{where}: no data rows")
+    data = np.asarray(rows, dtype=float)
+    rec = Recording(tuple(header), data, tuple(meta), source=where)
+    _check_time(rec.t_s, where)
+    if not allow_nan and not np.all(np.isfinite(data)):
+        r, c = np.argwhere(~np.isfinite(data))[0]
+        raise RecordingError(f"{where}: missing or non-finite value in column {header[c]!r} "
+                             f"at data row {r + 1}")
+    return rec
+
+
+def _fmt_row(values: Iterable[float]) -> str:
+    return ",".join(f"{v:.9g}" for v in values)
+
+
+def write_recording(path: Path | str, rec: Recording) -> None:
+    """Write ``rec`` as CSV (metadata first as ``# key: value`` comments)."""
+    _check_time(rec.t_s, str(path))
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", encoding="utf-8") as fh:
+        for k, v in rec.meta:
+            fh.write(f"# {k}: {v}\n")
+        fh.write(",".join(rec.columns) + "\n")
+        for row in rec.data:
+            fh.write(_fmt_row(row) + "\n")
+
+
+class RecordingWriter:
+    """Streams rows to a recording CSV (used by live services); flushes on close."""
+
+    def __init__(self, path: Path | str, columns: Sequence[str],
+                 meta: Iterable[tuple[str, str]] = ()) -> None:
+        if "t_s" not in columns:
+            raise RecordingError(f"{path}: a recording needs a t_s column")
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.columns = tuple(columns)
+        self._fh = self.path.open("w", encoding="utf-8")
+        for k, v in meta:
+            self._fh.write(f"# {k}: {v}\n")
+        self._fh.write(",".join(self.columns) + "\n")
+        self._last_t = -math.inf
+
+    def write(self, values: Sequence[float]) -> None:
+        """Append one row; rows whose time does not increase are skipped."""
+        if len(values) != len(self.columns):
+            raise ValueError(f"{len(values)} values for {len(self.columns)} columns")
+        t = float(values[self.columns.index("t_s")])
+        if t <= self._last_t:
+            return
+        self._last_t = t
+        self._fh.write(_fmt_row(values) + "\n")
+
+    def close(self) -> None:
+        """Flush and close the file."""
+        if not self._fh.closed:
+            self._fh.close()
+
+    def __enter__(self) -> RecordingWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
