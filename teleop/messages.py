@@ -1,0 +1,95 @@
+"""Typed messages exchanged by the three services.
+
+Every message carries a sequence number (``seq``), the sender's timestamp (``t_s``, on the
+sender's clock), a schema version and the sender's cumulative energy total
+(``energy_total_j``): the energy quantum travels as a monotone running total so that a lost,
+duplicated or reordered message can only lose energy, never create it.  The receiver adds
+only the increase of the total it has seen (see :mod:`teleop.control.energy_channel`).
+
+Flow::
+
+    master --MasterState--> controller --HandCommand--> hand
+    master <--ForceCommand-- controller <--HandState--- hand
+
+Encoding and validation live in :mod:`teleop.transport.codec`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+SCHEMA_VERSION = 1
+N_FINGERS = 3
+N_PRESSURE = 9  # per finger: 5 proximal, 4 distal
+
+
+class HandMode(IntEnum):
+    """How the hand interprets finger set-points."""
+
+    POSITION = 0  # finger_setpoint_rad are joint angles
+    FORCE = 1     # finger_force_units are tendon force commands (servo units)
+    VELOCITY = 2  # position move at a set speed (the stock driver's "velocity mode")
+    SAFE = 3      # hold (or open, per config) and ignore set-points
+
+
+@dataclass(frozen=True, slots=True)
+class Header:
+    """Fields every message carries."""
+
+    seq: int
+    t_s: float
+    energy_total_j: float
+    version: int = SCHEMA_VERSION
+
+
+@dataclass(frozen=True, slots=True)
+class MasterState:
+    """Master -> controller: the grasp trigger's opening and its rate (0 = open)."""
+
+    header: Header
+    grip_position_m: float
+    grip_velocity_m_s: float
+
+
+@dataclass(frozen=True, slots=True)
+class ForceCommand:
+    """Controller -> master: the force the trigger should display (positive resists closing)."""
+
+    header: Header
+    force_n: float
+
+
+@dataclass(frozen=True, slots=True)
+class HandCommand:
+    """Controller -> hand: finger set-points, preshape and mode."""
+
+    header: Header
+    finger_setpoint_rad: tuple[float, float, float]
+    preshape_rad: float
+    mode: HandMode = HandMode.POSITION
+    finger_force_units: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class FingerState:
+    """One finger's measured state."""
+
+    proximal_rad: float
+    distal_rad: float  # estimate: max(0, joint angle - proximal)
+    motor_angle_rad: float  # joint-side motor angle (raw * scale / ratio - zero)
+    load_units: float  # Dynamixel present load, signed (positive pulls the tendon)
+    pressure: tuple[float, ...]  # N_PRESSURE values, raw sensor units (0 at rest)
+    contact: tuple[bool, ...]  # N_PRESSURE flags: pressure above the contact threshold
+
+
+@dataclass(frozen=True, slots=True)
+class HandState:
+    """Hand -> controller: the state of every finger and the preshape joint."""
+
+    header: Header
+    fingers: tuple[FingerState, FingerState, FingerState]
+    preshape_rad: float
+
+
+Message = MasterState | ForceCommand | HandCommand | HandState
