@@ -87,7 +87,7 @@ def read_recording(path: Path | str, *, allow_nan: bool = True) -> Recording:
     path = Path(path)
     where = str(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a leading BOM (spreadsheets) is skipped
     except FileNotFoundError:
         raise RecordingError(f"{where}: file not found") from None
     except IsADirectoryError:
@@ -141,8 +141,10 @@ def read_recording(path: Path | str, *, allow_nan: bool = True) -> Recording:
     return rec
 
 
-def _fmt_row(values: Iterable[float]) -> str:
-    return ",".join(f"{v:.9g}" for v in values)
+def _fmt_row(values: Iterable[float], exact: int = -1) -> str:
+    """CSV cells with 9 significant digits; column ``exact`` (the time) round-trips exactly,
+    so strictly increasing times stay strictly increasing (1 kHz at t = 1e6 s needs 10)."""
+    return ",".join(repr(float(v)) if i == exact else f"{v:.9g}" for i, v in enumerate(values))
 
 
 def write_recording(path: Path | str, rec: Recording) -> None:
@@ -154,8 +156,9 @@ def write_recording(path: Path | str, rec: Recording) -> None:
         for k, v in rec.meta:
             fh.write(f"# {k}: {v}\n")
         fh.write(",".join(rec.columns) + "\n")
+        t_idx = rec.columns.index("t_s")
         for row in rec.data:
-            fh.write(_fmt_row(row) + "\n")
+            fh.write(_fmt_row(row, t_idx) + "\n")
 
 
 class RecordingWriter:
@@ -175,14 +178,15 @@ class RecordingWriter:
         self._last_t = -math.inf
 
     def write(self, values: Sequence[float]) -> None:
-        """Append one row; rows whose time does not increase are skipped."""
+        """Append one row; rows whose time does not increase (or is not finite) are skipped."""
         if len(values) != len(self.columns):
             raise ValueError(f"{len(values)} values for {len(self.columns)} columns")
-        t = float(values[self.columns.index("t_s")])
-        if t <= self._last_t:
+        t_idx = self.columns.index("t_s")
+        t = float(values[t_idx])
+        if not math.isfinite(t) or t <= self._last_t:
             return
         self._last_t = t
-        self._fh.write(_fmt_row(values) + "\n")
+        self._fh.write(_fmt_row(values, t_idx) + "\n")
 
     def close(self) -> None:
         """Flush and close the file."""

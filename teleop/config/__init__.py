@@ -29,7 +29,12 @@ def load_config(path: Path | None = None, overrides: Sequence[str] = ()) -> Tele
     cfg = TeleopConfig()
     if path is not None:
         cfg = build(TeleopConfig, read_toml(Path(path)), str(path))
-    return apply_overrides(cfg, overrides)
+    cfg = apply_overrides(cfg, overrides)
+    if cfg.security.enabled:  # secure mode refuses plaintext endpoints up front
+        from teleop.security.zenoh_secure import check_secure_endpoints
+
+        check_secure_endpoints(cfg)
+    return cfg
 
 
 def default_toml() -> str:

@@ -11,21 +11,51 @@ from teleop.config.loader import param, section
 class TankConfig:
     """Energy tank and passivity-layer tuning (Franken et al. 2011)."""
 
-    initial_j: float = param(1.0, "initial energy of each port's tank", unit="J", lo=0.0, hi=100.0)
-    desired_j: float = param(1.0, "tank level the master's level controller aims for", unit="J",
+    initial_j: float = param(1.0, "initial energy of each port's tank (tdpa: each side's initial "
+                             "budget)", unit="J", lo=0.0, hi=100.0)
+    desired_j: float = param(0.5, "tank level the master's level controller aims for", unit="J",
                              lo=0.0, hi=100.0)
     max_j: float = param(5.0, "upper tank limit; surplus is dissipated", unit="J", lo=0.0,
                          hi=1000.0)
-    min_j: float = param(0.0, "lowest level the passivity layer lets a tank reach", unit="J",
-                         lo=0.0, hi=100.0)
-    transfer_fraction: float = param(0.1, "fraction of the tank sent as energy quantum per "
-                                     "message (beta)", lo=0.0, hi=1.0)
-    tlc_gain: float = param(1.0, "tank level controller gain alpha", unit="N s/(m J)", lo=0.0,
+    min_j: float = param(0.01, "level below which the passivity layer stops paying for the "
+                         "transparency layer's demands", unit="J", lo=0.0, hi=100.0)
+    reserve_j: float = param(0.25, "level each port's tank keeps for itself; only the surplus "
+                             "above it is sent on", unit="J", lo=0.0, hi=100.0)
+    transfer_fraction: float = param(0.1, "fraction of the tank surplus sent as energy quantum "
+                                     "per message (beta)", lo=0.0, hi=1.0)
+    controller_fraction: float = param(0.1, "fraction of the controller's store forwarded per "
+                                       "cycle", lo=0.0, hi=1.0)
+    tlc_gain: float = param(20.0, "tank level controller gain alpha", unit="N s/(m J)", lo=0.0,
                             hi=1e6)
-    tlc_damping_max: float = param(5.0, "cap on the level controller's damping", unit="N s/m",
-                                   lo=0.0, hi=1e4)
+    tlc_damping_max: float = param(10.0, "cap on the level controller's damping (further capped "
+                                   "at trigger_mass_kg / (2 dt))", unit="N s/m", lo=0.0, hi=1e4)
     controller_split: float = param(0.5, "share of energy the controller forwards to the hand "
                                     "(rest to the master)", lo=0.0, hi=1.0)
+    energy_scale: float = param(1.0, "power scaling: hand-side joules per master-side joule "
+                                "(1 = unscaled, energy conserved literally)", lo=1e-3, hi=1e4)
+
+
+@dataclass(frozen=True, slots=True)
+class PortModelConfig:
+    """What the passivity layers assume about the two physical ports."""
+
+    trigger_max_speed_m_s: float = param(1.0, "largest trigger speed; bounds the energy one "
+                                         "held force can deliver in a sample", unit="m/s",
+                                         lo=1e-3, hi=100.0)
+    trigger_mass_kg: float = param(0.05, "smallest effective mass of trigger plus finger (caps "
+                                   "the level controller's damping)", unit="kg", lo=1e-4,
+                                   hi=10.0)
+    force_max_n: float = param(8.0, "largest force the trigger displays", unit="N", lo=0.0,
+                               hi=100.0)
+    servo_stiffness_nm_per_rad: float = param(13.0, "finger position servo stiffness at the "
+                                              "joint (upper bound; set-position modulation)",
+                                              unit="N m/rad", lo=1e-3, hi=1e4)
+    servo_damping_nm_s_per_rad: float = param(0.8, "finger servo damping at the joint (lower "
+                                              "bound; dissipation credited to the hand tank)",
+                                              unit="N m s/rad", lo=0.0, hi=1e3)
+    servo_torque_max_nm: float = param(3.55, "finger servo torque limit at the joint (upper "
+                                       "bound; MX-28 2.5 N m stall x 1.42)", unit="N m",
+                                       lo=1e-3, hi=1e3)
 
 
 @dataclass(frozen=True, slots=True)
@@ -33,10 +63,14 @@ class TransparencyConfig:
     """What the operator should feel and where the hand should go."""
 
     finger_enable: tuple[bool, ...] = param((True, True, True), "fingers driven by the trigger")
+    trigger_travel_m: float = param(0.025, "trigger travel mapped onto the finger range",
+                                    unit="m", lo=1e-3, hi=0.2)
     open_angle_rad: float = param(0.0, "finger set-point with the trigger open", unit="rad",
                                   lo=-1.0, hi=4.0)
     closed_angle_rad: float = param(3.0, "finger set-point with the trigger closed", unit="rad",
                                     lo=-1.0, hi=4.0)
+    map_exponent: float = param(1.0, "shape of the trigger-to-finger map: set-point = open + "
+                                "(closed - open) * fraction ** exponent", lo=0.1, hi=10.0)
     preshape_rad: float = param(0.0, "preshape joint set-point", unit="rad", lo=0.0, hi=1.75)
     force_per_pressure_n: float = param(0.02, "trigger force per unit of the combined maximum "
                                         "pressure", unit="N", lo=0.0, hi=10.0)
@@ -51,7 +85,8 @@ class ControllerConfig:
     """Which controller runs and how."""
 
     kind: str = param("two-layer", "controller (registry key)",
-                      choices=("two-layer", "direct", "tdpa", "wave"))
+                      choices=("two-layer", "direct", "tdpa"))
     rate_hz: float = param(1000.0, "controller loop rate", unit="Hz", lo=1.0, hi=10000.0)
     tank: TankConfig = section(TankConfig, "energy tanks of the passivity layer")
+    ports: PortModelConfig = section(PortModelConfig, "port models the passivity layers rely on")
     transparency: TransparencyConfig = section(TransparencyConfig, "transparency layer")

@@ -12,10 +12,12 @@ class ObjectConfig:
     """The object the simulated hand grasps."""
 
     kind: str = param("cylinder", "object shape", choices=("none", "cylinder", "block"))
-    x_m: float = param(0.045, "object centre (cylinder) or face (block) along the palm normal "
-                       "from the proximal axle, in the finger's plane", unit="m", lo=-1.0, hi=1.0)
-    y_m: float = param(0.03, "object centre offset across the finger's zero line", unit="m",
-                       lo=-1.0, hi=1.0)
+    x_m: float = param(0.045, "cylinder centre along the palm normal (the open finger's "
+                       "line) from the proximal axle, in the finger's plane; not used by a block",
+                       unit="m", lo=-1.0, hi=1.0)
+    y_m: float = param(0.03, "cylinder centre, or the block's flat face (the block fills "
+                       "y >= y_m), offset across the finger's zero line towards the side the "
+                       "finger closes to", unit="m", lo=-1.0, hi=1.0)
     radius_m: float = param(0.02, "cylinder radius", unit="m", lo=1e-3, hi=0.5)
     stiffness_n_per_m: float = param(2000.0, "contact stiffness", unit="N/m", lo=1.0, hi=1e7)
     damping_n_s_per_m: float = param(5.0, "contact damping", unit="N s/m", lo=0.0, hi=1e5)
@@ -51,9 +53,35 @@ class DynamixelConfig:
     overload_preshape_units: float = param(400.0, "preshape load threshold", unit="load units",
                                            lo=0.0, hi=1023.0)
     command_pacing: bool = param(False, "pace commands like the stock driver (0.09 s delay)")
+    command_delay_s: float = param(0.09, "delay applied to every command when pacing is on",
+                                   unit="s", lo=0.0, hi=5.0)
     max_failures: int = param(5, "consecutive bus failures before the hand goes safe", lo=1)
     retries: int = param(2, "retries of one failed bus transaction", lo=0, hi=100)
     timeout_s: float = param(0.02, "serial reply timeout", unit="s", lo=0.001, hi=5.0)
+    zeros_rad: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0), "calibration zero per motor: "
+                                         "raw * scale / ratio at joint angle 0 (what the "
+                                         "calibration routine saves)", unit="rad",
+                                         lo=-1000.0, hi=1000.0)
+    calibrate: bool = param(False, "run the finger calibration routine at start (step in "
+                            "until the load rises, back off, save the zero)")
+    calibration_load_units: float = param(40.0, "filtered load rise that marks the tendon "
+                                          "taking up the finger (calibration)",
+                                          unit="load units", lo=1.0, hi=1023.0)
+    calibration_step_s: float = param(0.05, "time between 6-count calibration steps", unit="s",
+                                      lo=0.001, hi=1.0)
+    calibration_max_steps: int = param(400, "calibration steps before giving up", lo=1,
+                                       hi=100000)
+    speed_rad_s: float = param(3.5, "joint speed of position moves (0 = servo maximum)",
+                               unit="rad/s", lo=0.0, hi=20.0)
+    torque_limit: float = param(1.0, "servo torque limit, fraction of maximum", lo=0.0, hi=1.0)
+    load_filter: float = param(0.25, "weight of a new load sample in the load filter", lo=0.01,
+                               hi=1.0)
+    force_gain_rad_per_unit: float = param(4e-5, "force mode: set-point change per load unit "
+                                           "of error per control tick", unit="rad/unit",
+                                           lo=0.0, hi=0.01)
+    contact_load_units: float = param(150.0, "filtered load of a stalled finger taken as "
+                                      "contact (this layout has no tactile sensors)",
+                                      unit="load units", lo=0.0, hi=1023.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,6 +14,12 @@ class VirtualOperatorConfig:
     style: str = param("relaxed", "grasp style", choices=("hard", "relaxed", "soft"))
     mass_kg: float = param(0.05, "effective mass of the operator's finger and trigger",
                            unit="kg", lo=1e-4, hi=10.0)
+    stiffness_n_per_m: float | None = param(
+        None, "stiffness of the operator's finger (unset: by style - hard 1500, relaxed 500, "
+        "soft 150)", unit="N/m", lo=1.0, hi=1e5)
+    damping_n_s_per_m: float | None = param(
+        None, "damping of the operator's finger (unset: by style - hard 12, relaxed 6, soft 3)",
+        unit="N s/m", lo=0.0, hi=1e4)
     close_s: float = param(0.5, "time before the operator starts closing", unit="s", lo=0.0)
     ramp_s: float = param(1.0, "time taken to close the trigger", unit="s", lo=0.01)
     hold_s: float = param(2.0, "time the grasp is held", unit="s", lo=0.0)

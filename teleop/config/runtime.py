@@ -47,5 +47,8 @@ class SweepConfig:
     losses: tuple[float, ...] = param((0.0, 0.2), "loss probabilities", lo=0.0, hi=1.0)
     jitter_s: float = param(0.0, "jitter scale applied at every point", unit="s", lo=0.0)
     controllers: tuple[str, ...] = param(("two-layer", "direct", "tdpa"), "controllers swept",
-                                         choices=("two-layer", "direct", "tdpa", "wave"))
+                                         choices=("two-layer", "direct", "tdpa"))
     duration_s: float = param(6.0, "simulated time per run", unit="s", lo=0.1, hi=3600.0)
+    workers: int = param(2, "lockstep runs in parallel (spawned processes)", lo=1, hi=64)
+    refine_steps: int = param(5, "bisection runs narrowing each controller's largest stable "
+                              "delay at zero loss", lo=0, hi=20)

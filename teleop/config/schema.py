@@ -9,6 +9,7 @@ from teleop.config.hand import HandConfig
 from teleop.config.loader import section
 from teleop.config.master import MasterConfig
 from teleop.config.runtime import DashboardConfig, SafetyConfig, SweepConfig
+from teleop.config.security import SecurityConfig
 from teleop.config.session import SessionConfig
 from teleop.config.transport import LinksConfig, ZenohConfig
 
@@ -19,6 +20,8 @@ class TeleopConfig:
 
     session: SessionConfig = section(SessionConfig, "the session")
     zenoh: ZenohConfig = section(ZenohConfig, "zenoh network")
+    security: SecurityConfig = section(SecurityConfig, "TLS, authentication and access "
+                                       "control of the zenoh network")
     links: LinksConfig = section(LinksConfig, "injected delay, jitter and loss per link")
     master: MasterConfig = section(MasterConfig, "master service")
     controller: ControllerConfig = section(ControllerConfig, "controller service")

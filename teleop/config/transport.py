@@ -20,6 +20,9 @@ class ZenohConfig:
     connect: tuple[str, ...] = param((), "extra endpoints this service connects to (teleop run)")
     multicast_scouting: bool = param(False, "enable zenoh multicast scouting")
     liveliness: bool = param(True, "declare a liveliness token per service and watch the peers'")
+    shared_clock: bool = param(
+        True, "services share one monotonic clock (one machine): injected delays count from "
+        "the send time; false: from the arrival time (across machines)")
 
 
 @dataclass(frozen=True, slots=True)
@@ -33,8 +36,9 @@ class LinkConfig:
     )
     jitter: str = param("none", "jitter distribution added to the delay",
                         choices=("none", "uniform", "normal", "pareto"))
-    jitter_s: float = param(0.0, "jitter scale (uniform: half-width; normal: sigma; "
-                            "pareto: scale)", unit="s", lo=0.0, hi=10.0)
+    jitter_s: float = param(0.0, "jitter scale; jitter only adds to delay_s (uniform: in "
+                            "[0, jitter_s]; normal: |N(0, jitter_s)|; pareto: Lomax scale, "
+                            "shape 2.5)", unit="s", lo=0.0, hi=10.0)
     loss: float = param(0.0, "packet loss probability (mean rate for gilbert)", lo=0.0, hi=1.0)
     loss_model: str = param("bernoulli", "loss process", choices=("bernoulli", "gilbert"))
     burst_length: float = param(5.0, "mean burst length of the Gilbert-Elliott loss process",

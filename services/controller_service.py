@@ -1,0 +1,98 @@
+"""The controller service (the NUC): transparency layer and energy forwarding (1 kHz).
+
+Per tick: receive master states and hand states -> the suite's pure controller step with the
+latest of each -> publish the force command and the hand command -> return a
+:class:`~services.samples.ControllerSample`.
+
+Watchdog: no valid hand state for the state timeout and the force sent to the master ramps to
+zero; the hand's liveliness token vanishing zeroes it at once.  (The controller has no
+physical port, so scaling the force it sends changes no energy account; the master's
+passivity layer still governs what is displayed.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+from services.samples import ControllerSample
+from services.suites import get_suite
+from services.watchdog import WatchdogState, controller_state_watchdog, watchdog_step
+from teleop.config import TeleopConfig
+from teleop.control.energy_channel import EnergyLedger
+from teleop.control.interface import ControllerSuite, control_params
+from teleop.messages import HandState, MasterState
+from teleop.transport.bus import Bus
+
+
+class ControllerService:
+    """The controller shell around ``suite.step_controller``."""
+
+    role = "controller"
+
+    def __init__(self, cfg: TeleopConfig, bus: Bus, suite: ControllerSuite | None = None,
+                 watchdogs: bool = True) -> None:
+        self.cfg = cfg
+        self.bus = bus
+        self.suite = suite if suite is not None else get_suite(cfg.controller.kind)
+        self.params = control_params(cfg.controller)
+        self.state: Any = self.suite.init_controller(self.params)
+        self.rate_hz = cfg.controller.rate_hz
+        self.dt_s = 1.0 / self.rate_hz
+        self.master: MasterState | None = None
+        self.hand: HandState | None = None
+        self.master_dropped = 0
+        self.hand_dropped = 0
+        self.wd_params = controller_state_watchdog(cfg, watchdogs)
+        self.wd = WatchdogState()
+        self.events: list[str] = []
+        self.ledger: EnergyLedger | None = None  # accounts after the last tick
+
+    def start(self) -> None:
+        """Nothing to connect."""
+
+    def tick(self, t_s: float) -> ControllerSample:
+        """One period at ``t_s``."""
+        self.events.clear()
+        m_delay = h_delay = math.nan
+        for r in self.bus.receive("master_state"):
+            msg = r.message
+            assert isinstance(msg, MasterState)
+            if self.master is not None and msg.header.seq > self.master.header.seq + 1:
+                self.master_dropped += msg.header.seq - self.master.header.seq - 1
+            self.master, m_delay = msg, r.delay_s
+        got_hand = False
+        for r in self.bus.receive("hand_state"):
+            msg = r.message
+            assert isinstance(msg, HandState)
+            if self.hand is not None and msg.header.seq > self.hand.header.seq + 1:
+                self.hand_dropped += msg.header.seq - self.hand.header.seq - 1
+            self.hand, h_delay, got_hand = msg, r.delay_s, True
+        prev = self.wd
+        self.wd = watchdog_step(self.wd, self.wd_params, t_s, got_hand, self.bus.alive("hand"),
+                                self.dt_s)
+        if self.wd.tripped != prev.tripped and self.wd.trips:
+            self.events.append("watchdog: no hand state, force to the master ramps to zero"
+                               if self.wd.tripped else "watchdog: hand state resumed")
+        self.state, out = self.suite.step_controller(self.state, self.params, self.master,
+                                                     self.hand, t_s, self.dt_s)
+        fc = out.force_command
+        if self.wd.gain < 1.0:
+            fc = replace(fc, force_n=fc.force_n * self.wd.gain)
+        self.bus.publish("force_command", fc)
+        self.bus.publish("hand_command", out.hand_command)
+        led = self.ledger = out.ledger
+        hc = out.hand_command
+        return ControllerSample(
+            t_s=t_s, setpoint_rad=tuple(hc.finger_setpoint_rad),  # type: ignore[arg-type]
+            preshape_rad=hc.preshape_rad, commanded_force_n=fc.force_n,
+            force_desired_n=out.force_desired_n,
+            max_pressure=tuple(out.max_pressure),  # type: ignore[arg-type]
+            store_j=led.tank_j, sent_j=led.sent_j, received_j=led.received_j,
+            dissipated_j=led.dissipated_j, master_delay_s=m_delay, hand_delay_s=h_delay,
+            master_dropped=float(self.master_dropped), hand_dropped=float(self.hand_dropped),
+            watchdog=float(self.wd.tripped))
+
+    def close(self) -> None:
+        """Nothing to release."""

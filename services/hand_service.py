@@ -1,0 +1,166 @@
+"""The hand service: the hand's loop at the hand-state rate (40 Hz by default).
+
+Per tick: receive hand commands -> read the hand (a simulated hand advances its physics to
+``t_s``) -> the suite's pure hand step (passive set-position modulation against the hand's
+tank) -> apply the limited set-points -> publish the hand state -> return a
+:class:`~services.samples.HandSample`.
+
+Watchdog: no valid command for the command timeout (or the controller's liveliness token
+gone) and the hand holds at once (or opens, ``safety.hand_safe_state``): the step is handed a
+hold command, so energy accounting and set-position modulation stay in force; when commands
+return, the set-point blends from the hold position into the commanded one over
+``safety.force_ramp_s`` (no jump).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from services.samples import HandSample
+from services.suites import get_suite
+from services.watchdog import WatchdogState, hand_command_watchdog, watchdog_step
+from teleop.config import TeleopConfig
+from teleop.control.energy_channel import EnergyLedger
+from teleop.control.interface import ControllerSuite, control_params
+from teleop.devices.base import HandBackend, HandReading
+from teleop.messages import HandCommand, HandMode, HandState, Header
+from teleop.transport.bus import Bus
+
+
+class HandService:
+    """The hand shell around ``suite.step_hand``."""
+
+    role = "hand"
+
+    def __init__(self, cfg: TeleopConfig, bus: Bus, backend: HandBackend,
+                 suite: ControllerSuite | None = None, watchdogs: bool = True) -> None:
+        self.cfg = cfg
+        self.bus = bus
+        self.backend = backend
+        self.suite = suite if suite is not None else get_suite(cfg.controller.kind)
+        self.params = control_params(cfg.controller)
+        self.state: Any = self.suite.init_hand(self.params)
+        self.rate_hz = cfg.hand.state_rate_hz
+        self.dt_s = 1.0 / self.rate_hz
+        self.seq = 0
+        self.command: HandCommand | None = None
+        self.hold_rad: tuple[float, float, float] | None = None
+        self.delay_s = math.nan
+        self.dropped = 0
+        self.limit_count = 0
+        self._was_limited = False
+        self.wd_params = hand_command_watchdog(cfg, watchdogs)
+        self.wd = WatchdogState()
+        self.events: list[str] = []
+        self.ledger: EnergyLedger | None = None  # accounts after the last tick
+        self.last_reading: HandReading | None = None
+        self.t0_s: float | None = None
+
+    def start(self) -> None:
+        """Connect and calibrate the hand."""
+        self.backend.start()
+
+    def _receive(self) -> bool:
+        got = False
+        for r in self.bus.receive("hand_command"):
+            msg = r.message
+            assert isinstance(msg, HandCommand)
+            if self.command is not None and msg.header.seq > self.command.header.seq + 1:
+                self.dropped += msg.header.seq - self.command.header.seq - 1
+            self.command, self.delay_s, got = msg, r.delay_s, True
+        return got
+
+    def _effective_command(self, reading: HandReading) -> HandCommand | None:
+        """The command handed to the step: received, hold/open, or a blend of the two."""
+        cmd = self.command
+        if self.wd.gain >= 1.0 and cmd is not None:
+            return cmd
+        if self.cfg.safety.hand_safe_state == "open":
+            safe = (self.cfg.controller.transparency.open_angle_rad,) * 3
+        else:
+            if self.hold_rad is None:
+                self.hold_rad = tuple(f.motor_angle_rad for f in reading.fingers)  # type: ignore[assignment]
+            safe = self.hold_rad
+        assert safe is not None
+        total = cmd.header.energy_total_j if cmd is not None else 0.0
+        if cmd is None or self.wd.gain <= 0.0 or cmd.mode != HandMode.POSITION:
+            sp = safe
+        else:
+            g = self.wd.gain
+            sp = tuple(s + g * (c - s) for s, c in zip(safe, cmd.finger_setpoint_rad,
+                                                       strict=True))
+        header = Header(seq=cmd.header.seq if cmd else 0, t_s=cmd.header.t_s if cmd else 0.0,
+                        energy_total_j=total)
+        pre = cmd.preshape_rad if cmd is not None else self.cfg.controller.transparency.preshape_rad
+        return HandCommand(header=header, finger_setpoint_rad=sp,  # type: ignore[arg-type]
+                           preshape_rad=pre, mode=HandMode.POSITION)
+
+    def tick(self, t_s: float) -> HandSample:
+        """One period at ``t_s``."""
+        self.events.clear()
+        got = self._receive()
+        prev = self.wd
+        self.wd = watchdog_step(self.wd, self.wd_params, t_s, got,
+                                self.bus.alive("controller"), self.dt_s)
+        if self.wd.tripped and not prev.tripped:
+            self.hold_rad = None  # hold where the fingers are now
+            self.events.append(f"watchdog: no valid command, hand goes to "
+                               f"{self.cfg.safety.hand_safe_state}")
+        elif prev.tripped and not self.wd.tripped:
+            self.events.append("watchdog: commands resumed, blending back" if self.wd.trips
+                               else "first command received, blending in")
+        if self.t0_s is None:
+            self.t0_s = t_s
+        reading = self.backend.read(t_s - self.t0_s)  # backend time: from the first tick
+        self.last_reading = reading
+        for fault in reading.faults:
+            self.events.append(f"hand fault: {fault}")
+        cmd = self._effective_command(reading)
+        self.state, out = self.suite.step_hand(self.state, self.params, reading.fingers, cmd,
+                                               self.dt_s)
+        if self.wd.gain >= 1.0:
+            self.hold_rad = None
+        elif self.hold_rad is None or self.wd.tripped:
+            self.hold_rad = out.setpoint_rad
+        applied = HandCommand(
+            header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
+            finger_setpoint_rad=out.setpoint_rad, preshape_rad=out.preshape_rad,
+            mode=HandMode.POSITION)
+        if all(math.isfinite(v) for v in (*out.setpoint_rad, out.preshape_rad)):
+            self.backend.apply(applied)
+        self.seq += 1
+        state_msg = HandState(
+            header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
+            fingers=reading.fingers, preshape_rad=reading.preshape_rad)
+        self.bus.publish("hand_state", state_msg)
+        if out.limited:
+            if not self._was_limited:
+                self.events.append("passivity layer limiting the set-points")
+            self.limit_count += 1
+        self._was_limited = out.limited
+        led = self.ledger = out.ledger
+        f = reading.fingers
+        return HandSample(
+            t_s=t_s,
+            proximal_angle_rad=tuple(x.proximal_rad for x in f),  # type: ignore[arg-type]
+            distal_angle_rad=tuple(x.distal_rad for x in f),  # type: ignore[arg-type]
+            motor_angle_rad=tuple(x.motor_angle_rad for x in f),  # type: ignore[arg-type]
+            motor_load_units=tuple(x.load_units for x in f),  # type: ignore[arg-type]
+            pressure=tuple(float(p) for x in f for p in x.pressure),
+            contacts=tuple(float(sum(x.contact)) for x in f),  # type: ignore[arg-type]
+            preshape_rad=reading.preshape_rad, setpoint_rad=out.setpoint_rad,
+            setpoint_desired_rad=out.setpoint_desired_rad, tank_j=led.tank_j,
+            port_in_j=led.port_in_j, port_out_j=led.port_out_j, sent_j=led.sent_j,
+            received_j=led.received_j, dissipated_j=led.dissipated_j,
+            spring_energy_j=out.spring_energy_j, limited=float(out.limited),
+            limit_count=float(self.limit_count), delay_s=self.delay_s if got else math.nan,
+            dropped=float(self.dropped), watchdog=float(self.wd.tripped))
+
+    def close(self) -> None:
+        """Go safe and release the hand."""
+        try:
+            self.backend.safe(self.cfg.safety.hand_safe_state)
+        finally:
+            self.backend.close()
+

@@ -1,0 +1,244 @@
+"""Lockstep runs: the three services on one in-process bus and a virtual clock.
+
+The same service shells as the live processes (:mod:`services.master_service` etc.), ticked in
+deadline order on a :class:`~teleop.transport.clock.VirtualClock` (master, then controller,
+then hand at equal times), with the injected link impairments of ``cfg.links``.  Nothing
+depends on wall time, so a run is a pure function of the config and the seed, and it runs
+much faster than real time.  ``teleop sweep`` calls :func:`run_lockstep` once per point.
+
+Example::
+
+    from services.lockstep import run_lockstep
+    res = run_lockstep(cfg, 6.0, seed=1)
+    res.proximal_rad[:, 0]      # finger 1's proximal angle at every master tick
+    res.energy_margin_j.min()   # >= 0: the energy balance held at every sample
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from services.controller_service import ControllerService
+from services.factory import build_hand, build_master
+from services.hand_service import HandService
+from services.master_service import MasterService
+from services.samples import ControllerSample, HandSample, MasterSample
+from teleop.config import TeleopConfig
+from teleop.devices.base import HandBackend, MasterBackend
+from teleop.transport.clock import VirtualClock
+from teleop.transport.inproc_bus import InProcessHub
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class LockstepResult:
+    """Time series of one lockstep run, one row per master tick (hand values held between
+    hand ticks).  Triples are ``(n, 3)`` arrays (fingers 1-3); energies are cumulative."""
+
+    controller: str
+    seed: int
+    duration_s: float
+    t_s: Array
+    # master port
+    trigger_position_m: Array
+    trigger_velocity_m_s: Array
+    operator_force_n: Array  # nan for a non-virtual master
+    displayed_force_n: Array  # on the trigger, after the master's passivity layer
+    master_force_desired_n: Array
+    # controller
+    commanded_force_n: Array  # force command the controller sends to the master
+    setpoint_rad: Array  # (n, 3) set-points the controller commands
+    max_pressure: Array  # (n, 3) per-finger max pressure seen by the controller
+    # hand port
+    hand_setpoint_rad: Array  # (n, 3) applied at the hand, after its passivity layer
+    proximal_rad: Array  # (n, 3)
+    distal_rad: Array  # (n, 3)
+    motor_angle_rad: Array  # (n, 3)
+    pressure: Array  # (n, 27)
+    # energy
+    master_tank_j: Array
+    controller_store_j: Array
+    hand_tank_j: Array
+    master_port_in_j: Array
+    master_port_out_j: Array
+    hand_port_in_j: Array
+    hand_port_out_j: Array
+    sent_j: Array  # total put on the links by all three sides
+    received_j: Array  # total credited from the links by all three sides
+    dissipated_j: Array  # total thrown away by the tanks' upper limits
+    initial_j: float  # total initial tank energy
+    # network
+    delay_master_to_controller_s: Array  # achieved; nan where no message arrived that tick
+    delay_controller_to_master_s: Array
+    delay_controller_to_hand_s: Array
+    delay_hand_to_controller_s: Array
+    dropped_master_state: Array  # cumulative missing messages (sequence gaps)
+    dropped_force_command: Array
+    dropped_hand_command: Array
+    dropped_hand_state: Array
+    # passivity layer and watchdogs
+    master_limited_count: Array  # cumulative ticks the master's layer limited the force
+    hand_limited_count: Array  # cumulative ticks the hand's layer moved the set-point
+    watchdog_trips: int
+
+    @property
+    def energy_delivered_j(self) -> Array:
+        """Energy delivered at both ports so far."""
+        return self.master_port_out_j + self.hand_port_out_j
+
+    @property
+    def energy_bound_j(self) -> Array:
+        """Initial tank energy plus the energy taken from both ports so far."""
+        return self.initial_j + self.master_port_in_j + self.hand_port_in_j
+
+    @property
+    def energy_margin_j(self) -> Array:
+        """Bound minus delivered: >= 0 at every sample when the loop is passive."""
+        return self.energy_bound_j - self.energy_delivered_j
+
+    @property
+    def energy_generated_j(self) -> float:
+        """Largest excess of delivered over bound (0 when passive)."""
+        return float(max(0.0, -float(np.min(self.energy_margin_j)))) if self.t_s.size else 0.0
+
+
+def _seeded(cfg: TeleopConfig, seed: int | None) -> TeleopConfig:
+    if seed is None:
+        return cfg
+    links = replace(cfg.links,
+                    master_controller=replace(cfg.links.master_controller, seed=seed),
+                    controller_hand=replace(cfg.links.controller_hand, seed=seed))
+    return replace(cfg, session=replace(cfg.session, seed=seed), links=links)
+
+
+_MASTER_COLS = ("t_s", "trigger_position_m", "trigger_velocity_m_s", "operator_force_n",
+                "displayed_force_n", "force_desired_n", "tank_j", "port_in_j", "port_out_j",
+                "sent_j", "received_j", "dissipated_j", "delay_s", "dropped", "limit_count")
+
+
+class _Recorder:
+    """Collects rows (one per master tick) of the latest sample of each service."""
+
+    def __init__(self, n: int) -> None:
+        self.n = 0
+        self.m = np.full((n, len(_MASTER_COLS)), np.nan)
+        self.c = np.full((n, 16), np.nan)
+        self.h = np.full((n, 3 * 5 + 27 + 10), np.nan)
+
+    def row(self, m: MasterSample, c: ControllerSample | None, h: HandSample | None,
+            c_fresh: bool, h_fresh: bool) -> None:
+        i = self.n
+        self.m[i] = [getattr(m, k) for k in _MASTER_COLS]
+        if c is not None:
+            self.c[i] = [*c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
+                         c.sent_j, c.received_j, c.dissipated_j,
+                         c.master_delay_s if c_fresh else np.nan,
+                         c.hand_delay_s if c_fresh else np.nan, c.master_dropped,
+                         c.hand_dropped, 0.0]
+        if h is not None:
+            self.h[i] = [*h.setpoint_rad, *h.proximal_angle_rad, *h.distal_angle_rad,
+                         *h.motor_angle_rad, *h.setpoint_desired_rad, *h.pressure, h.tank_j,
+                         h.port_in_j, h.port_out_j, h.sent_j, h.received_j, h.dissipated_j,
+                         h.delay_s if h_fresh else np.nan, h.dropped, h.limit_count, 0.0]
+        self.n += 1
+
+
+def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = None,
+                 master: MasterBackend | None = None, hand: HandBackend | None = None,
+                 watchdogs: bool = True,
+                 progress: Callable[[float], None] | None = None) -> LockstepResult:
+    """Run master, controller and hand in lockstep for ``duration_s`` of virtual time.
+
+    ``seed`` (if given) replaces the session and link seeds; ``master``/``hand`` replace the
+    backends the config names (fakes in tests); ``watchdogs`` turns the service watchdogs
+    off when False; ``progress(fraction)`` is called about 100 times.
+    """
+    cfg = _seeded(cfg, seed)
+    clock = VirtualClock(0.0)
+    hub = InProcessHub.from_config(cfg, clock)
+    m_svc = MasterService(cfg, hub.bus("master"), master or build_master(cfg),
+                          watchdogs=watchdogs)
+    c_svc = ControllerService(cfg, hub.bus("controller"), watchdogs=watchdogs)
+    h_svc = HandService(cfg, hub.bus("hand"), hand or build_hand(cfg), watchdogs=watchdogs)
+    services = (m_svc, c_svc, h_svc)
+    periods = [1.0 / s.rate_hz for s in services]
+    ticks = [0, 0, 0]
+    n_master = int(np.floor(duration_s * m_svc.rate_hz + 1e-9)) + 1
+    rec = _Recorder(n_master)
+    last_c: ControllerSample | None = None
+    last_h: HandSample | None = None
+    for s in services:
+        s.start()
+    report_every = max(1, n_master // 100)
+    try:
+        while True:
+            t = min(k * p for k, p in zip(ticks, periods, strict=True))
+            if t > duration_s + 1e-12 or rec.n >= n_master:
+                break
+            if t > clock.now_s():
+                clock.set(t)
+            m_sample: MasterSample | None = None
+            c_fresh = h_fresh = False
+            for i, s in enumerate(services):
+                if abs(ticks[i] * periods[i] - t) < 1e-12 or ticks[i] * periods[i] < t:
+                    sample = s.tick(ticks[i] * periods[i])
+                    ticks[i] += 1
+                    if i == 0:
+                        m_sample = sample  # type: ignore[assignment]
+                    elif i == 1:
+                        last_c, c_fresh = sample, True  # type: ignore[assignment]
+                    else:
+                        last_h, h_fresh = sample, True  # type: ignore[assignment]
+            if m_sample is not None:
+                rec.row(m_sample, last_c, last_h, c_fresh, h_fresh)
+                if progress is not None and rec.n % report_every == 0:
+                    progress(rec.n / n_master)
+    finally:
+        for s in services:
+            s.close()
+    return _result(cfg, duration_s, rec, m_svc, c_svc, h_svc)
+
+
+def _result(cfg: TeleopConfig, duration_s: float, rec: _Recorder, m_svc: MasterService,
+            c_svc: ControllerService, h_svc: HandService) -> LockstepResult:
+    n = rec.n
+    M, C, H = rec.m[:n], rec.c[:n], rec.h[:n]  # noqa: N806
+    mc = {k: M[:, j] for j, k in enumerate(_MASTER_COLS)}
+    hp = 15
+    initial = sum(s.ledger.initial_j for s in (m_svc, c_svc, h_svc) if s.ledger is not None)
+
+    def fill(a: Array) -> Array:
+        """Before the first sample of a service: zeros for cumulative counters."""
+        return np.nan_to_num(a, nan=0.0)
+
+    return LockstepResult(
+        controller=cfg.controller.kind, seed=cfg.session.seed, duration_s=duration_s,
+        t_s=mc["t_s"], trigger_position_m=mc["trigger_position_m"],
+        trigger_velocity_m_s=mc["trigger_velocity_m_s"],
+        operator_force_n=mc["operator_force_n"], displayed_force_n=mc["displayed_force_n"],
+        master_force_desired_n=mc["force_desired_n"],
+        commanded_force_n=C[:, 3], setpoint_rad=C[:, 0:3], max_pressure=C[:, 4:7],
+        hand_setpoint_rad=H[:, 0:3], proximal_rad=H[:, 3:6], distal_rad=H[:, 6:9],
+        motor_angle_rad=H[:, 9:12], pressure=H[:, hp:hp + 27],
+        master_tank_j=mc["tank_j"], controller_store_j=fill(C[:, 7]),
+        hand_tank_j=H[:, hp + 27],
+        master_port_in_j=mc["port_in_j"], master_port_out_j=mc["port_out_j"],
+        hand_port_in_j=fill(H[:, hp + 28]), hand_port_out_j=fill(H[:, hp + 29]),
+        sent_j=mc["sent_j"] + fill(C[:, 8]) + fill(H[:, hp + 30]),
+        received_j=mc["received_j"] + fill(C[:, 9]) + fill(H[:, hp + 31]),
+        dissipated_j=mc["dissipated_j"] + fill(C[:, 10]) + fill(H[:, hp + 32]),
+        initial_j=initial,
+        delay_master_to_controller_s=C[:, 11], delay_controller_to_master_s=mc["delay_s"],
+        delay_controller_to_hand_s=H[:, hp + 33], delay_hand_to_controller_s=C[:, 12],
+        dropped_master_state=fill(C[:, 13]), dropped_force_command=mc["dropped"],
+        dropped_hand_command=fill(H[:, hp + 34]), dropped_hand_state=fill(C[:, 14]),
+        master_limited_count=mc["limit_count"], hand_limited_count=fill(H[:, hp + 35]),
+        watchdog_trips=m_svc.wd.trips + c_svc.wd.trips + h_svc.wd.trips,
+    )
+
+
+__all__ = ["LockstepResult", "run_lockstep"]

@@ -1,0 +1,174 @@
+"""One live service process: zenoh bus, backend, real-time loop, recording, dashboard.
+
+``teleop run ROLE`` calls :func:`run_service`.  Order: open the bus (and declare the
+liveliness token) -> start the backend -> print ``ready <role>`` -> wait for the peers'
+liveliness -> tick at the role's rate until SIGINT/SIGTERM, end of stdin (when launched by
+``teleop up``) or ``duration_s`` -> close everything (backend safe/off, zenoh session, files).
+"""
+
+from __future__ import annotations
+
+import gc
+import json
+import signal
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from services.runtime import LoopStats, RateLoop, try_realtime_priority
+from services.telemetry import Telemetry
+from teleop.config import TeleopConfig
+
+PEERS: dict[str, tuple[str, ...]] = {
+    "master": ("controller",),
+    "controller": ("master", "hand"),
+    "hand": ("controller",),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class ServiceOptions:
+    """How ``teleop run`` was asked to run one service."""
+
+    role: str
+    duration_s: float | None = None
+    dashboard: str = "off"  # off | save:PATH | connect:URL | spawn | web
+    record_dir: str | None = None
+    recording_id: str | None = None
+    epoch_s: float | None = None
+    watch_stdin: bool = False  # stop at end of stdin (the parent `teleop up` went away)
+    stats_path: str | None = None  # write the loop's timing figures as JSON here
+    peer_timeout_s: float | None = 30.0  # None: wait for peers forever
+    realtime: bool = True  # try SCHED_FIFO (the 1 kHz loops above the hand's)
+
+
+def build_service(role: str, cfg: TeleopConfig, bus: Any) -> Any:
+    """The service shell for ``role`` on ``bus`` with the configured backend."""
+    from services.factory import build_hand, build_master
+
+    if role == "master":
+        from services.master_service import MasterService
+
+        return MasterService(cfg, bus, build_master(cfg))
+    if role == "controller":
+        from services.controller_service import ControllerService
+
+        return ControllerService(cfg, bus)
+    from services.hand_service import HandService
+
+    return HandService(cfg, bus, build_hand(cfg))
+
+
+def _dashboard_stream(opts: ServiceOptions) -> Any:
+    if opts.dashboard == "off":
+        return None
+    import uuid
+
+    from teleop.viz.dashboard import open_stream
+
+    rid = opts.recording_id or str(uuid.uuid4())
+    mode, _, arg = opts.dashboard.partition(":")
+    if mode == "save":
+        return open_stream(rid, "save", path=arg, send_blueprint=False)
+    if mode == "connect":
+        return open_stream(rid, "connect", url=arg or None, send_blueprint=False)
+    return open_stream(rid, mode)
+
+
+def _wait_for_peers(bus: Any, role: str, loop: RateLoop, timeout_s: float | None) -> bool:
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    told = False
+    while not loop.stop_event.is_set():
+        missing = [p for p in PEERS[role] if not bus.alive(p)]
+        if not missing:
+            return True
+        if deadline is not None and time.monotonic() > deadline:
+            print(f"{role}: peers not alive after {timeout_s:g} s: {', '.join(missing)}",
+                  file=sys.stderr, flush=True)
+            return False
+        if not told and deadline is None:
+            print(f"{role}: waiting for {', '.join(missing)}", flush=True)
+            told = True
+        time.sleep(0.01)
+    return False
+
+
+def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
+    """Run one service until stopped; exit status."""
+    from teleop.transport.clock import MonotonicClock
+    from teleop.transport.zenoh_bus import ZenohBus
+
+    role = opts.role
+    clock = MonotonicClock()
+    rate = {"master": cfg.master.rate_hz, "controller": cfg.controller.rate_hz,
+            "hand": cfg.hand.state_rate_hz}[role]
+    loop = RateLoop(rate, clock=clock)
+    previous = {s: signal.signal(s, lambda *_: loop.stop())
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    if opts.watch_stdin:
+        def watch() -> None:
+            sys.stdin.read()
+            loop.stop()
+
+        threading.Thread(target=watch, daemon=True).start()
+    bus = ZenohBus.from_config(role, cfg, clock=clock)
+    telemetry: Telemetry | None = None
+    svc: Any = None
+    stats: LoopStats | None = None
+    try:
+        svc = build_service(role, cfg, bus)
+        svc.start()
+        record = Path(opts.record_dir) / f"{role}.csv" if opts.record_dir else None
+        meta = (("role", role), ("controller", cfg.controller.kind),
+                ("session", cfg.session.name), ("rate_hz", f"{rate:g}"))
+        telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
+                              cfg.dashboard.rate_hz, meta)
+        print(f"ready {role}", flush=True)
+        if not _wait_for_peers(bus, role, loop, opts.peer_timeout_s):
+            return 0 if loop.stop_event.is_set() else 1
+        tel = telemetry
+        is_hand = role == "hand"
+        priority = 20 if rate >= 100.0 else 10
+        if opts.realtime and not try_realtime_priority(priority):
+            print(f"{role}: no real-time priority (needs CAP_SYS_NICE); loop timing may "
+                  "suffer on a busy machine", file=sys.stderr, flush=True)
+
+        def tick(t_s: float) -> None:
+            sample = svc.tick(t_s)
+            tel.emit(sample, svc.events, svc.last_reading if is_hand else None)
+
+        # garbage collection: start-up objects frozen out of the collector's way, automatic
+        # collection off, a young-generation collection once a second inside the loop
+        # instead (a full collection can pause a process for tens of milliseconds)
+        gc.collect()
+        gc.freeze()
+        gc.disable()
+        every = max(1, int(rate))
+        count = [0]
+
+        def tick_gc(t_s: float) -> None:
+            tick(t_s)
+            count[0] += 1
+            if count[0] % every == 0:
+                gc.collect(1)
+
+        try:
+            stats = loop.run(tick_gc, duration_s=opts.duration_s)
+        finally:
+            gc.enable()
+        return 0
+    finally:
+        try:
+            if svc is not None:
+                svc.close()
+        finally:
+            bus.close()
+            if telemetry is not None:
+                telemetry.close()
+            if stats is not None and opts.stats_path:
+                Path(opts.stats_path).write_text(json.dumps(stats.figures(role)) + "\n")
+            for s, h in previous.items():
+                signal.signal(s, h)

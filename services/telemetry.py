@@ -1,0 +1,113 @@
+"""Where a live service's samples go: a recording CSV and the rerun dashboard.
+
+Every tick's sample is written to the recording (``--record DIR`` -> ``DIR/<role>.csv``, the
+DESIGN.md format: ``t_s`` then SI-unit columns).  The dashboard gets the signals at
+``dashboard.rate_hz`` and every event (passivity limiting, watchdog, dropped messages) as it
+happens.  Time on both is seconds since the session epoch.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from services.samples import (
+    ControllerSample,
+    HandSample,
+    MasterSample,
+    Sample,
+    sample_columns,
+    sample_row,
+)
+from teleop.devices.base import HandReading
+from teleop.recording import RecordingWriter
+
+
+class Telemetry:
+    """Recording and dashboard output of one service."""
+
+    def __init__(self, role: str, rec: Any | None, record_path: Path | None,
+                 epoch_s: float | None, dashboard_rate_hz: float,
+                 meta: tuple[tuple[str, str], ...] = ()) -> None:
+        self.role = role
+        self.rec = rec
+        self.record_path = record_path
+        self.meta = meta
+        self.epoch_s = epoch_s
+        self.period_s = 1.0 / dashboard_rate_hz
+        self._next_log_s = -math.inf
+        self._writer: RecordingWriter | None = None
+        self._delays: dict[str, float] = {}
+        self._dropped: dict[str, float] = {}
+        if rec is not None:  # import now, not inside the first tick
+            from teleop.viz import dashboard  # noqa: F401
+
+    def _t(self, t_s: float) -> float:
+        if self.epoch_s is None:
+            self.epoch_s = t_s
+        return t_s - self.epoch_s
+
+    def _delay(self, key: str, value: float) -> float | None:
+        if math.isfinite(value):
+            self._delays[key] = value
+        return self._delays.get(key)
+
+    def emit(self, sample: Sample, events: list[str],
+             reading: HandReading | None = None) -> None:
+        """Record ``sample``; log it (at the dashboard rate) and ``events`` (always)."""
+        t = self._t(sample.t_s)
+        if self.record_path is not None:
+            if self._writer is None:
+                self._writer = RecordingWriter(self.record_path, sample_columns(sample),
+                                               meta=self.meta)
+            row = sample_row(sample)
+            row[0] = t
+            self._writer.write(row)
+        if self.rec is None:
+            return
+        from teleop.viz import dashboard as dash
+
+        for text in events:
+            level = "WARN" if "watchdog" in text or "fault" in text else "INFO"
+            dash.log_event(self.rec, t, self.role, text, level)
+        if t < self._next_log_s:
+            return
+        self._next_log_s = t + self.period_s
+        self._log(dash, t, sample, reading)
+
+    def _dropped_event(self, dash: Any, t: float, name: str, total: float) -> None:
+        before = self._dropped.get(name, 0.0)
+        if total > before:
+            dash.log_event(self.rec, t, self.role,
+                           f"dropped {total - before:.0f} {name} (total {total:.0f})", "WARN")
+        self._dropped[name] = total
+
+    def _log(self, dash: Any, t: float, s: Sample, reading: HandReading | None) -> None:
+        rec = self.rec
+        if isinstance(s, MasterSample):
+            dash.log_master(rec, t, trigger_position_m=s.trigger_position_m,
+                            displayed_force_n=s.displayed_force_n, tank_j=s.tank_j,
+                            port_in_j=s.port_in_j, port_out_j=s.port_out_j,
+                            delay_s=self._delay("m", s.delay_s))
+            self._dropped_event(dash, t, "force commands", s.dropped)
+        elif isinstance(s, ControllerSample):
+            dash.log_controller(rec, t, setpoints_rad=s.setpoint_rad,
+                                commanded_force_n=s.commanded_force_n,
+                                energy_stored_j=s.store_j,
+                                master_delay_s=self._delay("cm", s.master_delay_s),
+                                hand_delay_s=self._delay("ch", s.hand_delay_s))
+            self._dropped_event(dash, t, "master states", s.master_dropped)
+            self._dropped_event(dash, t, "hand states", s.hand_dropped)
+        elif isinstance(s, HandSample) and reading is not None:
+            dash.log_hand(rec, t, reading, tank_j=s.tank_j, port_in_j=s.port_in_j,
+                          port_out_j=s.port_out_j, delay_s=self._delay("h", s.delay_s))
+            self._dropped_event(dash, t, "hand commands", s.dropped)
+
+    def close(self) -> None:
+        """Flush the recording and the dashboard stream."""
+        if self._writer is not None:
+            self._writer.close()
+        if self.rec is not None:
+            self.rec.flush()
+            self.rec.disconnect()

@@ -1,0 +1,92 @@
+"""Watchdogs: a pure per-tick step that turns "is the peer talking?" into a 0..1 gain.
+
+``gain`` is 1 while valid messages keep coming and 0 in the safe state.  A timeout (no valid
+message for ``timeout_s``) moves it towards 0 over ``down_ramp_s`` (0: at once); a vanished
+liveliness token drops it to 0 at once; when messages return it rises back to 1 over
+``up_ramp_s``, so the service resumes without a jump.  The services apply the gain to what
+they hand their pure controller step (the master scales the received force command, the hand
+blends its hold set-point into the received command, the controller scales the force it
+sends), which keeps the energy accounts exact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+from teleop.config import TeleopConfig
+
+
+@dataclass(frozen=True, slots=True)
+class WatchdogParams:
+    """When a watchdog trips and how fast it ramps."""
+
+    timeout_s: float
+    down_ramp_s: float
+    up_ramp_s: float
+    enabled: bool = True
+
+
+@dataclass(frozen=True, slots=True)
+class WatchdogState:
+    """Time of the last valid message, whether tripped, the gain, and trips so far."""
+
+    last_valid_t_s: float | None = None
+    tripped: bool = True
+    gain: float = 0.0
+    trips: int = 0
+
+
+def watchdog_step(state: WatchdogState, p: WatchdogParams, t_s: float, got_valid: bool,
+                  peer_alive: bool, dt_s: float) -> WatchdogState:
+    """Advance the watchdog by one tick at ``t_s``."""
+    if not p.enabled:
+        return replace(state, last_valid_t_s=t_s if got_valid else state.last_valid_t_s,
+                       tripped=False, gain=1.0)
+    last = t_s if got_valid else state.last_valid_t_s
+    fresh = last is not None and t_s - last <= p.timeout_s
+    ok = fresh and peer_alive
+    gain = state.gain
+    if not peer_alive:
+        gain = 0.0
+    elif ok:
+        gain = 1.0 if p.up_ramp_s <= 0 else min(1.0, gain + dt_s / p.up_ramp_s)
+    else:
+        gain = 0.0 if p.down_ramp_s <= 0 else max(0.0, gain - dt_s / p.down_ramp_s)
+    trips = state.trips + (1 if (not ok and not state.tripped) else 0)
+    return WatchdogState(last_valid_t_s=last, tripped=not ok, gain=gain, trips=trips)
+
+
+def _link_delay_s(cfg: TeleopConfig, link: str, forward: bool) -> float:
+    lc = getattr(cfg.links, link)
+    d = lc.delay_s if forward or lc.backward_delay_s is None else lc.backward_delay_s
+    return d + 3.0 * lc.jitter_s
+
+
+def hand_command_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogParams:
+    """Hand side: no valid hand command -> hold at once; resume over ``force_ramp_s``."""
+    s = cfg.safety
+    timeout = s.command_timeout_s
+    if timeout is None:
+        timeout = (4.0 / cfg.controller.rate_hz + 1.0 / cfg.hand.state_rate_hz
+                   + _link_delay_s(cfg, "controller_hand", True))
+    return WatchdogParams(timeout, down_ramp_s=0.0, up_ramp_s=s.force_ramp_s, enabled=enabled)
+
+
+def master_force_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogParams:
+    """Master side: no valid force command -> the force ramps to zero."""
+    s = cfg.safety
+    timeout = s.state_timeout_s
+    if timeout is None:
+        timeout = 4.0 / cfg.controller.rate_hz + _link_delay_s(cfg, "master_controller", False)
+    return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
+                          enabled=enabled)
+
+
+def controller_state_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogParams:
+    """Controller: no valid hand state -> the force sent to the master ramps to zero."""
+    s = cfg.safety
+    timeout = s.state_timeout_s
+    if timeout is None:
+        timeout = 4.0 / cfg.hand.state_rate_hz + _link_delay_s(cfg, "controller_hand", False)
+    return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
+                          enabled=enabled)

@@ -1,0 +1,111 @@
+"""Objects the finger touches, penalty contact on the sensor pads, and the 9 pressure readings.
+
+The finger lives in its own plane: x along the finger at rest (the palm normal), +y towards the
+side it curls to; the base axle is the origin.  A ``cylinder`` is a circle of ``radius_m``
+centred at (x_m, y_m); a ``block`` is the half-plane y >= y_m (a flat face parallel to the
+finger at rest; x_m is not used).  Contact is a compliant (spring ``stiffness_n_per_m`` +
+damper ``damping_n_s_per_m``) normal force on each link's pad.  A cylinder touches a pad at
+one point; a block presses a pad as a Winkler foundation (stiffness spread uniformly along
+the pad), whose resultant acts at the centroid of the pressed part.
+
+Pressure: each link's contact force lands at a point along the link; every sensor of that link
+reads ``pressure_per_n * F * kernel(distance)``, a narrow Gaussian (the two sensors nearest a
+cylinder read strongly) plus a weak exponential tail (the rubber spreads the load to
+neighbours weakly), as in the report's Fig. 3.6.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sim.params import FingerParams
+from teleop.config.hand import ObjectConfig
+
+
+@dataclass(frozen=True, slots=True)
+class ContactObject:
+    """An object in the finger's plane (same meaning as ``teleop.config.hand.ObjectConfig``)."""
+
+    kind: str = "none"  # "none" | "cylinder" | "block"
+    x_m: float = 0.045
+    y_m: float = 0.03
+    radius_m: float = 0.02
+    stiffness_n_per_m: float = 2000.0
+    damping_n_s_per_m: float = 5.0
+
+
+NO_OBJECT = ContactObject()
+
+
+def contact_object_from_config(cfg: ObjectConfig) -> ContactObject:
+    """The contact object described by the config section ``hand.sim.object``."""
+    return ContactObject(kind=cfg.kind, x_m=cfg.x_m, y_m=cfg.y_m, radius_m=cfg.radius_m,
+                         stiffness_n_per_m=cfg.stiffness_n_per_m,
+                         damping_n_s_per_m=cfg.damping_n_s_per_m)
+
+
+def pad_contact(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+                by: float) -> tuple[float, float, float, float, float]:
+    """Penetration of one pad segment A->B (proximal frame) into ``obj``.
+
+    Returns ``(stiffness_scale, depth_m, t, nx, ny)``: the contact force is
+    ``k * depth`` (+ damping) along (nx, ny) (proximal frame, pushing the finger away), applied
+    at A + t (B - A); ``stiffness_scale`` (0..1) is the fraction of the pad's stiffness engaged
+    (1 for a point contact).  ``depth_m <= 0`` means no contact.
+    """
+    if obj.kind == "cylinder":
+        # object centre in the proximal frame
+        cx = cphi * obj.x_m + sphi * obj.y_m
+        cy = -sphi * obj.x_m + cphi * obj.y_m
+        ex = bx - ax
+        ey = by - ay
+        t = ((cx - ax) * ex + (cy - ay) * ey) / (ex * ex + ey * ey)
+        t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
+        px = ax + t * ex
+        py = ay + t * ey
+        dx = px - cx
+        dy = py - cy
+        dist = math.sqrt(dx * dx + dy * dy)
+        depth = obj.radius_m - dist
+        if depth <= 0.0 or dist < 1e-12:
+            return 0.0, 0.0, 0.0, 0.0, 0.0
+        return 1.0, depth, t, dx / dist, dy / dist
+    if obj.kind == "block":
+        # half-plane world y >= y_m; world y of a proximal-frame point = s x + c y
+        pa = sphi * ax + cphi * ay - obj.y_m
+        pb = sphi * bx + cphi * by - obj.y_m
+        nx, ny = -sphi, -cphi
+        if pa <= 0.0 and pb <= 0.0:
+            return 0.0, 0.0, 0.0, 0.0, 0.0
+        if pa > 0.0 and pb > 0.0:
+            mean = 0.5 * (pa + pb)
+            t = (pa + 2.0 * pb) / (3.0 * (pa + pb))
+            return 1.0, mean, t, nx, ny
+        if pb > 0.0:
+            t0 = pa / (pa - pb)
+            frac = 1.0 - t0
+            return frac, 0.5 * pb, t0 + frac * 2.0 / 3.0, nx, ny
+        t0 = pa / (pa - pb)
+        return t0, 0.5 * pa, t0 / 3.0, nx, ny
+    return 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+def sensor_pressures(params: FingerParams, prox_force_n: float, prox_x_m: float,
+                     dist_force_n: float, dist_x_m: float) -> tuple[float, ...]:
+    """The 9 raw pressure readings (5 proximal, 4 distal) from the two links' contact forces."""
+    gain = params.pressure_per_n
+    inv2s2 = 0.5 / (params.pressure_sigma_m ** 2)
+    tail = params.pressure_tail
+    inv_tail = 1.0 / params.pressure_tail_m
+    out: list[float] = []
+    for force, where, xs in ((prox_force_n, prox_x_m, params.proximal_sensor_x_m),
+                             (dist_force_n, dist_x_m, params.distal_sensor_x_m)):
+        if force <= 0.0:
+            out.extend(0.0 for _ in xs)
+            continue
+        for xk in xs:
+            d = xk - where
+            out.append(gain * force * (math.exp(-d * d * inv2s2)
+                                       + tail * math.exp(-abs(d) * inv_tail)))
+    return tuple(out)

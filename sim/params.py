@@ -1,0 +1,137 @@
+"""Physical constants of one ReFlex TakkTile finger and its MX-28 tendon motor.
+
+Every number is SI (m, rad, N, N m, kg, s) unless the name says otherwise (``*_units`` are
+Dynamixel servo units).  Sources: the seed report (chapter 4, Tables 4.1/4.2), the ReFlex robot
+description and the MX-28 datasheet (``shared/reference/reflex-hardware.md``).
+
+Recalibrated constants (the report's own numbers conflict with its measurements; we match the
+measurements, as the issue asks):
+
+* **Base spring** ``k_base_nm_per_rad``: the report's 5.47 N m/rad would need ~90 N of tendon
+  force to lift the finger by 1 rad (with the ~17 mm base moment arm), yet its own Table 4.2
+  shows 0.767 rad at 9.8 N.  Table 4.2's model column is linear above a threshold: 2.407 rad at
+  15.7 N and 0.767 rad at 9.8 N give d(angle)/dF = 0.27797 rad/N, i.e.
+  ``k_base = r_base / 0.27797`` = 0.0624 N m/rad, and the threshold (the finger stays on its stop
+  at 6.9 N and 4.9 N) is a spring **preload** of ``15.7 r_base / k_base - 2.407`` = 1.957 rad
+  against the open stop.  That preload is why the finger rests at 0.
+* **Flexure**: the report measured 5.928 N m/rad for the whole urethane joint and then *divided*
+  by 4 for 4 series segments; springs in series need each segment 4x stiffer than the whole
+  (k_seg = n k_total).  Its 5.928 N m/rad also cannot be read off a 20 g weight with a protractor
+  (1.3 mrad).  We calibrate the whole-joint stiffness to the report's position-mode offset
+  (~0.25 rad between set-point and proximal angle, section 3.1.1): 0.15 N m/rad total, 0.60 N m/rad
+  per segment.
+* **Motor viscous friction**: Table 4.1's "damping" falls with the input.  We model Coulomb
+  friction ``motor_coulomb_units`` plus a viscous coefficient interpolated log-log through
+  ``(u - u_c) / slope`` at the table's inputs, so the unloaded-string terminal speed reproduces
+  Table 4.1.  The table's slope is read as motor-shaft rad/s.
+* **Spool radius** ``r_motor_m``: the report's "~5 units per N" and the MX-28's 2.5 N m stall at
+  1023 load units give r = 2.5 / (1023 / 5) = 12.2 mm.
+* **Base moment arm** ``r_base_m`` = 1.42 r_motor: the driver's joint angle is shaft / 1.42 and
+  equals the proximal angle when the distal is straight.
+* Masses/inertias are not published; the values below are estimates from the link sizes
+  (light links: the dynamics are dominated by the motor's friction and the springs).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+# Table 4.2, model column (force N -> proximal rad) and Table 4.1 (input units -> shaft rad/s).
+TABLE_4_2_MODEL: tuple[tuple[float, float], ...] = ((15.7, 2.407), (9.8, 0.767), (6.9, 0.0),
+                                                     (4.9, 0.0))
+TABLE_4_1_SLOPES: tuple[tuple[float, float], ...] = ((50.0, 0.06733), (100.0, 0.1781),
+                                                     (200.0, 0.4240))
+JOINT_RATIO = 1.42  # motor shaft angle / driver joint angle (fingers)
+
+
+@dataclass(frozen=True, slots=True)
+class FingerParams:
+    """Physical constants of one finger + tendon + MX-28 (see module docstring for sources)."""
+
+    # geometry (finger plane; x along the finger at rest, +y towards the palm/flexion side)
+    proximal_rigid_m: float = 0.060   # proximal axle -> start of the flexure
+    n_flex: int = 4                   # flexure segments in series
+    flex_segment_m: float = 0.004     # 4 x 4 mm = the ~16 mm urethane flexure
+    distal_length_m: float = 0.045
+    pad_offset_m: float = 0.007       # sensor pad surface above the link centre line (+y)
+    pin1_xy_m: tuple[float, float] = (0.052, 0.008)   # X1 on the proximal link (proximal frame)
+    pin2_xy_m: tuple[float, float] = (0.006, 0.008)   # X2 on the distal link (distal frame)
+    tip_xy_m: tuple[float, float] = (0.040, 0.006)    # Xc, tendon anchor (distal frame)
+    proximal_sensor_x_m: tuple[float, ...] = (0.0189, 0.0268, 0.0347, 0.0426, 0.0506)
+    distal_sensor_x_m: tuple[float, ...] = (0.0114, 0.0193, 0.0272, 0.0375)
+    # joints
+    k_base_nm_per_rad: float = 0.0         # filled in by default_finger_params (Table 4.2)
+    base_preload_rad: float = 0.0          # ditto
+    c_base_nm_s_per_rad: float = 1.0e-3
+    proximal_limits_rad: tuple[float, float] = (0.0, 2.8)
+    k_flex_total_nm_per_rad: float = 0.30  # whole flexure; each segment n times stiffer
+    c_flex_segment_nm_s_per_rad: float = 3.0e-3
+    flex_segment_limits_rad: tuple[float, float] = (-0.05, 0.45)
+    inertia_proximal_kg_m2: float = 1.9e-4  # proximal + distal about the base axle
+    inertia_flex_kg_m2: float = 2.0e-5      # distal link about a flexure segment
+    # tendon
+    r_base_m: float = JOINT_RATIO * 0.01222
+    k_tendon_n_per_m: float = 2.0e4
+    c_tendon_n_s_per_m: float = 20.0
+    tendon_slack_m: float = 0.0005          # slack at rest after the driver's calibration
+    # motor (MX-28 + spool), shaft coordinates
+    r_motor_m: float = 0.01222
+    units_per_n: float = 5.0
+    max_effort_units: float = 1023.0
+    inertia_motor_kg_m2: float = 3.0e-3     # reflected rotor inertia (estimate, 193:1 gearing)
+    motor_coulomb_units: float = 5.0
+    coulomb_velocity_rad_s: float = 0.005   # regularisation width of the friction sign
+    damping_table: tuple[tuple[float, float], ...] = ()  # (input units, units per rad/s)
+    kp_units_per_rad: float = 1000.0        # servo P gain on shaft angle error
+    max_speed_rad_s: float = 5.76           # no-load shaft speed (55 rpm)
+    command_delay_s: float = 0.0            # the stock driver's 0.09 s when enabled
+    # gravity on the links (off: the hand's orientation is not modelled; see effects)
+    # contact sensing
+    pressure_per_n: float = 100.0           # raw TakkTile units per N at the kernel peak
+    pressure_sigma_m: float = 0.004
+    pressure_tail: float = 0.08             # weak spread through the rubber to neighbours
+    pressure_tail_m: float = 0.010
+    contact_threshold: float = 20.0         # raw units (driver's contact flag)
+
+    @property
+    def k_flex_segment_nm_per_rad(self) -> float:
+        """Stiffness of one of the ``n_flex`` series segments (n times the whole joint's)."""
+        return self.k_flex_total_nm_per_rad * self.n_flex
+
+
+def _damping_table(coulomb_units: float) -> tuple[tuple[float, float], ...]:
+    """Viscous coefficient (units per shaft rad/s) reproducing Table 4.1 with Coulomb friction."""
+    return tuple((u, (u - coulomb_units) / slope) for u, slope in TABLE_4_1_SLOPES)
+
+
+def default_finger_params() -> FingerParams:
+    """The calibrated finger (base spring from Table 4.2, motor friction from Table 4.1)."""
+    r_base = JOINT_RATIO * 0.01222
+    (f_hi, a_hi), (f_lo, a_lo) = TABLE_4_2_MODEL[0], TABLE_4_2_MODEL[1]
+    rad_per_n = (a_hi - a_lo) / (f_hi - f_lo)
+    k_base = r_base / rad_per_n
+    preload = f_hi * rad_per_n - a_hi
+    coulomb = 5.0
+    return FingerParams(k_base_nm_per_rad=k_base, base_preload_rad=preload, r_base_m=r_base,
+                        motor_coulomb_units=coulomb, damping_table=_damping_table(coulomb))
+
+
+def motor_damping_units(params: FingerParams, effort_units: float) -> float:
+    """Viscous coefficient (units per shaft rad/s) at this effort: log-log through Table 4.1.
+
+    Outside the table the end slopes are extended; the effort is clamped to [20, 1023] units.
+    """
+    table = params.damping_table
+    u = min(max(abs(effort_units), 20.0), params.max_effort_units)
+    if u <= table[0][0]:
+        (u0, d0), (u1, d1) = table[0], table[1]
+    elif u >= table[-1][0]:
+        (u0, d0), (u1, d1) = table[-2], table[-1]
+    else:
+        i = 1
+        while table[i][0] < u:
+            i += 1
+        (u0, d0), (u1, d1) = table[i - 1], table[i]
+    p = math.log(d1 / d0) / math.log(u1 / u0)
+    return d0 * (u / u0) ** p

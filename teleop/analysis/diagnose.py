@@ -1,0 +1,490 @@
+"""The diagnose pipeline for the axis model: nominal fit, residual, windows, effects, ranking.
+
+Pure functions over recordings; the result is a frozen :class:`Diagnosis` that the terminal
+report, the JSON writer and the plot consume.
+
+Analysis mode: output-error (simulate and compare positions) when the fitted nominal simulation
+tracks the measurement (NRMSE below ``OE_DRIFT_NRMSE``); otherwise (a simulation that drifts or
+diverges, typical of closed-loop data or an integrating axis) equation-error (inverse dynamics:
+the effort residual on the filtered, differentiated position).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from teleop.analysis import candidates as cand
+from teleop.analysis.axis_model import Array
+from teleop.analysis.equation_error import (
+    EE_EFFECTS,
+    EEFit,
+    EESignals,
+    ee_effect_fit,
+    ee_fit,
+    ee_signals,
+    model_equation_error,
+)
+from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, scan_effect, simulate
+from teleop.analysis.model import AxisNominal
+from teleop.analysis.residual import ResidualStats, analyse_residual, noise_std
+from teleop.analysis.windows import Window, conditions, locate_windows
+from teleop.errors import RecordingError, UserInputError
+from teleop.recording import Recording
+
+OE_DRIFT_NRMSE = 0.7
+MIN_SAMPLES = 200
+
+
+@dataclass(frozen=True, slots=True)
+class DiagnoseOptions:
+    """Settings of one diagnosis."""
+
+    nominal: AxisNominal
+    input_col: str | None
+    output_col: str
+    analysis: str = "auto"            # auto | output-error | equation-error
+    min_delta_bic: float = 20.0
+    min_holdout_gain: float = 0.02    # held-out relative error reduction an effect must bring
+    max_effects: int = 3
+    fit_rate_hz: float = 250.0
+    max_nfev: int = 8
+    screen_top: int = 3
+    noise_factor: float = 1.5         # residual rms below this many noise levels: stop adding
+
+
+@dataclass(frozen=True, slots=True)
+class EffectResult:
+    """One effect the data support."""
+
+    name: str
+    params: tuple[tuple[str, float], ...]
+    std: tuple[tuple[str, float], ...]
+    delta_bic: float
+    holdout_gain: float
+    explanation: str
+
+
+@dataclass(frozen=True, slots=True)
+class Validation:
+    """Fit on a held-out recording."""
+
+    nrmse_before: float
+    nrmse_after: float
+
+
+@dataclass(frozen=True, slots=True)
+class Traces:
+    """Signals for plotting (segments concatenated)."""
+
+    t: Array
+    measured: Array
+    nominal: Array
+    augmented: Array
+    residual: Array
+
+
+@dataclass(frozen=True, slots=True)
+class Diagnosis:
+    """Everything ``teleop diagnose`` found."""
+
+    analysis: str
+    analysis_reason: str
+    nominal_params: tuple[tuple[str, float], ...]
+    final_params: tuple[tuple[str, float], ...]
+    effects: tuple[EffectResult, ...]
+    ranking: tuple[tuple[str, float], ...]    # every candidate: (name, delta BIC) best first
+    windows: tuple[Window, ...]
+    residual_before: ResidualStats
+    residual_after: ResidualStats
+    nrmse_before: float
+    nrmse_after: float
+    validation: Validation | None
+    traces: Traces
+
+
+def nrmse(y: Array, y_hat: Array) -> float:
+    """||y - y_hat|| / ||y - mean(y)||."""
+    d = float(np.linalg.norm(y - np.mean(y)))
+    e = y_hat - y
+    if not np.all(np.isfinite(e)):
+        return math.inf
+    return float(np.linalg.norm(e)) / d if d > 0 else math.inf
+
+
+def _signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None, Array]:
+    where = rec.source
+    y = rec.column(opts.output_col)
+    u = rec.column(opts.input_col) if opts.input_col else None
+    t = rec.t_s
+    for name, col in (("t_s", t), (opts.output_col, y)) + (
+            ((opts.input_col, u),) if u is not None else ()):
+        bad = ~np.isfinite(col)
+        if np.any(bad):
+            raise RecordingError(f"{where}: column {name!r} has a gap (missing or non-finite "
+                                 f"value) at data row {int(np.argmax(bad)) + 1}")
+    if len(t) < MIN_SAMPLES:
+        raise RecordingError(f"{where}: {len(t)} samples is too short to diagnose (need at least "
+                             f"{MIN_SAMPLES})")
+    if float(np.std(y)) <= 0:
+        raise RecordingError(f"{where}: column {opts.output_col!r} never changes; nothing to fit")
+    dts = np.diff(t)
+    if np.max(dts) > 5 * np.median(dts):
+        i = int(np.argmax(dts))
+        raise RecordingError(f"{where}: sampling gap of {dts[i]:.3g} s after t={t[i]:.6g} s "
+                             f"(uneven sampling; split the recording)")
+    return t, u, y
+
+
+def _decimate(t: Array, u: Array | None, y: Array, rate_hz: float) -> Segment:
+    fs = 1.0 / float(np.median(np.diff(t)))
+    m = max(1, int(round(fs / rate_hz)))
+    if m == 1:
+        return Segment(t, u, y)
+    n = (len(t) // m) * m
+    td, yd = t[:n:m], y[:n:m]
+    ud = None if u is None else u[:n].reshape(-1, m).mean(axis=1)
+    return Segment(td, ud, yd)
+
+
+def _concat_ee(sigs: Sequence[EESignals]) -> EESignals:
+    if len(sigs) == 1:
+        return sigs[0]
+    ts, off = [], 0.0
+    for s in sigs:
+        ts.append(s.t - s.t[0] + off)
+        off = ts[-1][-1] + (s.t[1] - s.t[0])
+    u = None if sigs[0].u is None else np.concatenate([s.u for s in sigs])  # type: ignore[misc]
+    return EESignals(np.concatenate(ts), np.concatenate([s.x for s in sigs]),
+                     np.concatenate([s.v for s in sigs]), np.concatenate([s.a for s in sigs]),
+                     u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
+
+
+def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple[str, float], ...],
+                                                                     tuple[tuple[str, float], ...]]:
+    z = fit.value(f"effect:{name}")
+    sz = fit.std(f"effect:{name}")
+    val = cand.to_effect_value(name, z, data.scales, data.max_dt_s)
+    if name == "series_compliance":
+        std = sz / z ** 2 if z > 0 else math.inf
+    else:
+        std = sz
+    params: list[tuple[str, float]] = [(name, val)]
+    stds: list[tuple[str, float]] = [(name, std)]
+    if name == "stiction":
+        params.append(("stribeck_velocity", data.stribeck_velocity))
+    return tuple(params), tuple(stds)
+
+
+def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: ModelFit,
+                  nfev: int) -> float:
+    """Relative error reduction on the last 30 % of every segment, both fitted on the rest."""
+    masks = []
+    for s in data.segments:
+        m = np.ones(len(s.y), bool)
+        m[int(0.7 * len(s.y)):] = False
+        masks.append(m)
+    train = np.concatenate(masks)
+    test = ~train
+    y = data.y
+    errs = []
+    for f in (base, aug):
+        f2 = fit_model(data, nominal, f.as_dict(), f.effects, nfev, mask=train)
+        r = f2.y_fit - y
+        errs.append(float(np.sum(np.where(np.isfinite(r), r, 1e6)[test] ** 2)))
+    return 1.0 - errs[1] / errs[0] if errs[0] > 0 else 0.0
+
+
+def _ee_start(sig: EESignals, nominal: AxisNominal, current: ModelFit, name: str,
+              fixed_inertia: float, scales: cand.Scales) -> dict[str, float] | None:
+    """Start values from an equation-error fit of the current effects plus ``name``."""
+    effs = current.effects + (name,)
+    if any(e not in EE_EFFECTS for e in effs):
+        return None
+    grids = _ee_grids(scales)
+    base = {e: current.value(f"effect:{e}") for e in current.effects}
+    f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)), fixed_inertia)
+    start = current.as_dict()
+    extra = dict(f.extra)
+    for n, c in zip(f.names, f.coef, strict=True):
+        if n in nominal.terms:
+            start[n] = c
+    for e in effs:
+        if e in extra and e != "stiction":
+            start[f"effect:{e}"] = extra[e]
+        elif e == "sensor_offset":
+            k = f.get("stiffness") + f.get("gravity")
+            start[f"effect:{e}"] = f.get(e) / k if k else 0.0
+        else:
+            start[f"effect:{e}"] = f.get(e)
+    return start
+
+
+def _best_start(data: FitData, nominal: AxisNominal, current: ModelFit, name: str,
+                sig: EESignals, fixed_inertia: float) -> dict[str, float]:
+    """The better of a grid scan from the current fit and an equation-error start."""
+    z0 = scan_effect(data, current, name)
+    starts = [{**current.as_dict(), f"effect:{name}": z0}]
+    ee = _ee_start(sig, nominal, current, name, fixed_inertia, data.scales)
+    if ee is not None:
+        starts.append(ee)
+    if len(starts) == 1:
+        return starts[0]
+    names = current.names[:-2 * len(data.segments)] + (f"effect:{name}",) + data.state_names()
+    y = data.y
+    best, best_s = math.inf, starts[0]
+    for st in starts:
+        th = tuple(st.get(n, 0.0) for n in names)
+        r = simulate(names, th, data) - y
+        rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
+        if rss < best:
+            best, best_s = rss, st
+    return best_s
+
+
+def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: DiagnoseOptions,
+               names: tuple[str, ...], sig: EESignals, fixed_inertia: float, noise: float
+               ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]]]:
+    current = nom
+    chosen: list[EffectResult] = []
+    ranking: list[tuple[str, float]] = []
+    remaining = list(names)
+    while remaining and len(chosen) < opts.max_effects:
+        rms = math.sqrt(current.rss / current.n)
+        if rms < opts.noise_factor * noise and chosen:
+            break  # what is left is measurement noise
+        fits: list[tuple[float, str, ModelFit]] = []
+        for name in remaining:
+            start = _best_start(data, nominal, current, name, sig, fixed_inertia)
+            f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
+            fits.append((current.bic - f.bic, name, f))
+        fits.sort(key=lambda x: -x[0])
+        if not chosen:
+            ranking = [(n, d) for d, n, _ in fits]
+        accepted = False
+        for dbic, name, f in fits:
+            if dbic < opts.min_delta_bic:
+                break
+            z, sz = f.value(f"effect:{name}"), f.std(f"effect:{name}")
+            if not abs(z - cand.neutral(name)) > 2.0 * sz:
+                continue
+            gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
+            if gain < opts.min_holdout_gain:
+                continue
+            f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
+            p, s = _effect_params(name, f, data)
+            chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
+            current = f
+            remaining = [n for d, n, _ in fits if n != name and d >= opts.min_delta_bic]
+            accepted = True
+            break
+        if not accepted:
+            break
+    return current, chosen, ranking
+
+
+def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
+    return {"dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
+            "actuator_lag": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.2, 0.4),
+            "actuator_saturation": tuple(f * scales.umax for f in (0.3, 0.4, 0.5, 0.6, 0.7,
+                                                                  0.8, 0.9)),
+            "stiction": (0.02 * scales.velocity, 0.05 * scales.velocity,
+                         0.1 * scales.velocity)}
+
+
+def _screen(sig: EESignals, nominal: AxisNominal, names: tuple[str, ...], fixed_inertia: float,
+            scales: cand.Scales, top: int) -> tuple[str, ...]:
+    """Candidates worth an output-error fit: the best ``top`` by equation error, plus the
+    effects equation error cannot see well (stiction, backlash, series compliance)."""
+    grids = _ee_grids(scales)
+    base = ee_fit(sig, nominal, {}, fixed_inertia)
+    scored = []
+    for name in names:
+        if name in EE_EFFECTS and name != "stiction":
+            f = ee_effect_fit(sig, nominal, {}, name, grids.get(name, (1.0,)), fixed_inertia)
+            scored.append((base.bic - f.bic, name))
+    scored.sort(reverse=True)
+    keep = {n for _, n in scored[:top]} | {n for n in names if n not in EE_EFFECTS
+                                           or n == "stiction"}
+    return tuple(n for n in names if n in keep)
+
+
+def _select_ee(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions, names: tuple[str, ...],
+               fixed_inertia: float, scales: cand.Scales
+               ) -> tuple[EEFit, EEFit, list[EffectResult], list[tuple[str, float]]]:
+    grids = _ee_grids(scales)
+    base: dict[str, float] = {}
+    nom = ee_fit(sig, nominal, base, fixed_inertia)
+    current = nom
+    chosen: list[EffectResult] = []
+    ranking: list[tuple[str, float]] = []
+    remaining = [n for n in names if n in EE_EFFECTS]
+    while remaining and len(chosen) < opts.max_effects:
+        fits = []
+        for name in remaining:
+            f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)), fixed_inertia)
+            fits.append((current.bic - f.bic, name, f))
+        fits.sort(key=lambda x: -x[0])
+        if not chosen:
+            ranking = [(n, d) for d, n, _ in fits]
+        if not fits or fits[0][0] < opts.min_delta_bic:
+            break
+        dbic, name, f = fits[0]
+        extra = dict(f.extra)
+        if name in extra:
+            val = extra[name] if name != "stiction" else f.get("stiction")
+        else:
+            val = f.get(name)
+        if name == "sensor_offset":
+            k = f.get("stiffness") + f.get("gravity")
+            val = val / k if k else val
+        params = [(name, val)] + ([("stribeck_velocity", extra["stiction"])]
+                                  if name == "stiction" else [])
+        chosen.append(EffectResult(name, tuple(params), ((name, math.nan),), dbic, math.nan,
+                                   cand.explanation(name, val)))
+        base = {**base, name: extra.get(name, 1.0)}
+        current = f
+        remaining = [n for d, n, _ in fits if n != name and d >= opts.min_delta_bic]
+    return nom, current, chosen, ranking
+
+
+def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
+             validate: Recording | None = None) -> Diagnosis:
+    """Diagnose what the nominal axis model misses in ``recordings``."""
+    if not recordings:
+        raise UserInputError("no recording given")
+    raw = [_signals(r, opts) for r in recordings]
+    has_input = opts.input_col is not None
+    nominal = opts.nominal
+    fixed_inertia = nominal.value("inertia") or 1.0
+    sigs = [ee_signals(t, y, u) for t, u, y in raw]
+    sig = _concat_ee(sigs)
+    # scales for start values and bounds
+    vel = float(np.sqrt(np.mean(sig.v ** 2))) or 1.0
+    umax = float(max(np.max(np.abs(u)) for _, u, _ in raw)) if has_input else 0.0  # type: ignore
+    effort = (float(np.sqrt(np.mean(sig.u ** 2))) if sig.u is not None
+              else fixed_inertia * float(np.sqrt(np.mean(sig.a ** 2))))
+    pos = float(max(np.ptp(y) for _, _, y in raw))
+    nom_ee = ee_fit(sig, nominal, {}, fixed_inertia)
+    inertia = nom_ee.get("inertia", fixed_inertia) if has_input else fixed_inertia
+    dur = float(sum(t[-1] - t[0] for t, _, _ in raw))
+    dt = float(np.median(np.diff(raw[0][0])))
+    scales = cand.Scales(effort or 1.0, pos, vel, umax, max(inertia, 1e-9), dur, dt)
+    segs = tuple(_decimate(t, u, y, opts.fit_rate_hz) for t, u, y in raw)
+    max_dt = min(2e-3, float(np.median(np.diff(segs[0].t))))
+    data = FitData(segs, max_dt, scales, fixed_inertia, 0.05 * vel)
+    start = {n: c for n, c in zip(nom_ee.names, nom_ee.coef, strict=True)}
+    if has_input and "inertia" in nominal.terms:
+        start["inertia"] = max(start.get("inertia", inertia), 1e-6)
+    for i, s in enumerate(sigs):
+        start[f"x0_{i}"] = float(s.x[0])
+        start[f"v0_{i}"] = float(s.v[0])
+    names = cand.applicable(nominal, has_input)
+    noise = float(np.sqrt(np.mean([noise_std(y) ** 2 for _, _, y in raw])))
+
+    nom_fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
+    nom_nrmse = nrmse(data.y, nom_fit.y_fit)
+    print("DBG nominal rms/noise", math.sqrt(nom_fit.rss / nom_fit.n) / noise)
+    mode = opts.analysis
+    if mode == "auto":
+        if nom_nrmse < OE_DRIFT_NRMSE:
+            mode, reason = "output-error", (f"the nominal simulation tracks the measurement "
+                                            f"(NRMSE {nom_nrmse:.3f})")
+        else:
+            mode, reason = "equation-error", (f"the nominal simulation drifts (NRMSE "
+                                              f"{nom_nrmse:.3g}); fitting inverse dynamics")
+    else:
+        reason = "chosen by --analysis"
+
+    t_all = np.concatenate([s.t for s in segs])
+    conds = conditions(sig.t, sig.x, sig.v, sig.u)
+    signals = {"position": data.y}
+    if mode == "output-error":
+        screened = _screen(sig, nominal, names, fixed_inertia, scales, opts.screen_top)
+        final, chosen, ranking = _select_oe(data, nominal, nom_fit, opts, screened, sig,
+                                            fixed_inertia, noise)
+        r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
+        before, after = nom_nrmse, nrmse(data.y, final.y_fit)
+        p_nom, e_nom = build(nom_fit.names, nom_fit.theta, data)
+        p_fin, e_fin = build(final.names, final.theta, data)
+        ee_nom = model_equation_error(sig, p_nom, e_nom)
+        ee_fin = model_equation_error(sig, p_fin, e_fin)
+        nominal_params = tuple((k, v) for k, v in nom_fit.as_dict().items()
+                               if not k.startswith(("x0_", "v0_")))
+        final_params = tuple((k, v) for k, v in final.as_dict().items()
+                             if not k.startswith(("x0_", "v0_")))
+        traces = Traces(t_all, data.y, nom_fit.y_fit, final.y_fit, r_after)
+        if segs[0].u is not None:
+            signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
+    else:
+        nom_e, fin_e, chosen, ranking = _select_ee(sig, nominal, opts, names, fixed_inertia,
+                                                   scales)
+        ee_nom, ee_fin = nom_e.residual, fin_e.residual
+        tgt_scale = float(np.linalg.norm(fixed_inertia * sig.a if sig.u is None else sig.u))
+        before = float(np.linalg.norm(ee_nom)) / tgt_scale
+        after = float(np.linalg.norm(ee_fin)) / tgt_scale
+        r_before, r_after = ee_nom, ee_fin
+        nominal_params = tuple(zip(nom_e.names, nom_e.coef, strict=True))
+        final_params = tuple(zip(fin_e.names, fin_e.coef, strict=True)) + fin_e.extra
+        traces = Traces(sig.t, sig.u if sig.u is not None else fixed_inertia * sig.a,
+                        (sig.u if sig.u is not None else fixed_inertia * sig.a) + ee_nom,
+                        (sig.u if sig.u is not None else fixed_inertia * sig.a) + ee_fin, ee_fin)
+        signals = {"position": sig.x}
+        if sig.u is not None:
+            signals["input"] = sig.u
+    noise_ee = 1.4826 * float(np.median(np.abs(ee_fin - np.median(ee_fin))))
+    windows = locate_windows(sig.t, ee_nom, noise_ee, conds)
+    yy = data.y if mode == "output-error" else sig.x
+    stats_b = analyse_residual(r_before, yy, signals)
+    stats_a = analyse_residual(r_after, yy, signals)
+    val = None
+    if validate is not None and mode == "output-error":
+        val = _validate(validate, opts, data, nominal, nom_fit, final)
+    return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
+                     windows, stats_b, stats_a, before, after, val, traces)
+
+
+def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nominal: AxisNominal,
+              nom: ModelFit, final: ModelFit) -> Validation:
+    """NRMSE of both models on a held-out recording (only the initial state is fitted)."""
+    t, u, y = _signals(rec, opts)
+    if (u is None) != (not data.has_input):
+        raise UserInputError(f"{rec.source}: validation recording must match the input setup")
+    seg = _decimate(t, u, y, opts.fit_rate_hz)
+    vdata = FitData((seg,), data.max_dt_s, data.scales, data.fixed_inertia,
+                    data.stribeck_velocity)
+    sig = ee_signals(t, y, u)
+    out = []
+    for f in (nom, final):
+        fixed = AxisNominal(nominal.terms, tuple(f.as_dict().get(term, nominal.value(term))
+                                                 for term in nominal.terms), 0.0)
+        start = {**f.as_dict(), "x0_0": float(sig.x[0]), "v0_0": float(sig.v[0])}
+        fixed_fit = _fit_state_only(vdata, fixed, start, f.effects)
+        out.append(nrmse(seg.y, fixed_fit))
+    return Validation(out[0], out[1])
+
+
+def _fit_state_only(data: FitData, nominal: AxisNominal, start: dict[str, float],
+                    effects: tuple[str, ...]) -> Array:
+    from scipy import optimize
+
+    base = [k for k in start if not k.startswith(("x0_", "v0_"))]
+    names = tuple(base) + ("x0_0", "v0_0")
+    fixed = [start[k] for k in base]
+
+    def resid(s: Array) -> Array:
+        r = simulate(names, tuple(fixed) + (s[0], s[1]), data) - data.y
+        return np.where(np.isfinite(r), r, 10 * data.scales.position)
+
+    x0 = np.array([start["x0_0"], start["v0_0"]])
+    res = optimize.least_squares(resid, x0, x_scale=np.array([data.scales.position,
+                                                              data.scales.velocity]),
+                                 max_nfev=40)
+    return simulate(names, tuple(fixed) + (res.x[0], res.x[1]), data)
+
+
+__all__ = ["DiagnoseOptions", "Diagnosis", "EffectResult", "Validation", "Traces", "diagnose",
+           "nrmse", "noise_std"]

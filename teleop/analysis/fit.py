@@ -1,0 +1,213 @@
+"""Output-error (simulation) fits of the axis model, nominal or augmented with catalog effects.
+
+Parameters: the nominal model's refinable terms (within their bounds), one internal coordinate per
+effect (see :mod:`teleop.analysis.candidates`) and the initial position and velocity.  The
+simulated output is compared with the measurement on the fit grid; ``scipy.optimize.least_squares``
+(trust region reflective, bounded) minimises the sum of squares.  Uncertainty: the Gauss-Newton
+covariance ``s^2 (J^T J)^-1`` at the solution.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy import optimize
+
+from teleop.analysis import candidates as cand
+from teleop.analysis.axis_model import Array, AxisParams, simulate_axis
+from teleop.analysis.model import AxisNominal
+from teleop.effects import EffectSet
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """One recording on the output-error fit grid."""
+
+    t: Array
+    u: Array | None
+    y: Array
+
+
+@dataclass(frozen=True, slots=True)
+class FitData:
+    """The recordings on the output-error fit grid (each segment has its own initial state)."""
+
+    segments: tuple[Segment, ...]
+    max_dt_s: float
+    scales: cand.Scales
+    fixed_inertia: float
+    stribeck_velocity: float
+
+    @property
+    def y(self) -> Array:
+        """All measured samples, segment after segment."""
+        return np.concatenate([s.y for s in self.segments])
+
+    @property
+    def has_input(self) -> bool:
+        """Whether the model is driven by an input."""
+        return self.segments[0].u is not None
+
+    def state_names(self) -> tuple[str, ...]:
+        """Initial-state parameter names, two per segment."""
+        return tuple(n for i in range(len(self.segments)) for n in (f"x0_{i}", f"v0_{i}"))
+
+
+@dataclass(frozen=True, slots=True)
+class ModelFit:
+    """A fitted model: parameters, their standard errors, residual sum of squares."""
+
+    effects: tuple[str, ...]
+    names: tuple[str, ...]
+    theta: tuple[float, ...]
+    sigma: tuple[float, ...]
+    rss: float
+    n: int
+    y_fit: Array
+
+    @property
+    def n_params(self) -> int:
+        """Number of fitted parameters."""
+        return len(self.theta)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion."""
+        return self.n * math.log(max(self.rss, 1e-300) / self.n) + self.n_params * math.log(self.n)
+
+    def value(self, name: str) -> float:
+        """A fitted parameter by name."""
+        return self.theta[self.names.index(name)]
+
+    def std(self, name: str) -> float:
+        """Standard error of a fitted parameter."""
+        return self.sigma[self.names.index(name)]
+
+    def as_dict(self) -> dict[str, float]:
+        """Parameter name -> value."""
+        return dict(zip(self.names, self.theta, strict=True))
+
+
+def free_terms(nominal: AxisNominal, has_input: bool) -> tuple[str, ...]:
+    """Nominal terms refined by the fit (inertia is a unit choice for a free response)."""
+    return tuple(t for t in nominal.terms if not (t == "inertia" and not has_input))
+
+
+def build(names: tuple[str, ...], theta: Array | tuple[float, ...], data: FitData
+          ) -> tuple[AxisParams, EffectSet]:
+    """Model objects from a parameter vector."""
+    vals = dict(zip(names, (float(v) for v in theta), strict=True))
+    p = AxisParams(inertia=vals.get("inertia", data.fixed_inertia),
+                   viscous=vals.get("viscous", 0.0), stiffness=vals.get("stiffness", 0.0),
+                   gravity=vals.get("gravity", 0.0), coulomb=vals.get("coulomb", 0.0),
+                   offset=vals.get("offset", 0.0), stribeck_velocity=data.stribeck_velocity)
+    eff = EffectSet()
+    for name, z in vals.items():
+        if name.startswith("effect:"):
+            en = name[7:]
+            val = cand.to_effect_value(en, z, data.scales, data.max_dt_s)
+            if en == "series_compliance" and not math.isfinite(val):
+                continue
+            eff = replace(eff, **{en: val})
+    return p, eff
+
+
+def simulate(names: tuple[str, ...], theta: Array | tuple[float, ...], data: FitData) -> Array:
+    """Simulated measurement of every segment, concatenated."""
+    p, eff = build(names, theta, data)
+    vals = dict(zip(names, (float(v) for v in theta), strict=True))
+    out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s)
+           for i, s in enumerate(data.segments)]
+    return np.concatenate(out)
+
+
+def _bounds(name: str, nominal: AxisNominal, data: FitData) -> tuple[float, float]:
+    if name.startswith("effect:"):
+        return cand.bounds(name[7:], data.scales)
+    if name.startswith(("x0_", "v0_")):
+        return -math.inf, math.inf
+    return nominal.bounds(name)
+
+
+def _scale(name: str, start: float, data: FitData) -> float:
+    s = data.scales
+    if name.startswith("x0_"):
+        return s.position
+    if name.startswith("v0_"):
+        return s.velocity
+    if name == "effect:dead_time" or name == "effect:actuator_lag":
+        return 0.05
+    if name == "effect:actuator_gain":
+        return 1.0
+    return max(abs(start), 1e-6 * s.effort, 1e-12)
+
+
+def _inside(v: float, lo: float, hi: float) -> float:
+    """``v`` moved strictly inside ``(lo, hi)``."""
+    span = hi - lo
+    eps = 1e-6 * span if math.isfinite(span) else 1e-9 * max(abs(v), 1.0)
+    if math.isfinite(lo) and v <= lo + eps:
+        v = lo + eps
+    if math.isfinite(hi) and v >= hi - eps:
+        v = hi - eps
+    return v
+
+
+def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
+              effects: tuple[str, ...] = (), max_nfev: int = 60,
+              mask: Array | None = None) -> ModelFit:
+    """Least-squares fit from ``start`` (name -> value; effect coordinates as ``effect:NAME``).
+
+    ``mask`` (boolean on the fit grid) restricts the samples the fit sees (held-out checks).
+    """
+    names = tuple(free_terms(nominal, data.has_input)) + tuple(
+        f"effect:{e}" for e in effects) + data.state_names()
+    x_start = np.array([start.get(n, 0.0) for n in names], float)
+    lo = np.array([_bounds(n, nominal, data)[0] for n in names])
+    hi = np.array([_bounds(n, nominal, data)[1] for n in names])
+    x_start = np.array([_inside(v, a, b) for v, a, b in zip(x_start, lo, hi, strict=True)])
+    xs = np.array([_scale(n, v, data) for n, v in zip(names, x_start, strict=True)])
+    big = 10.0 * data.scales.position
+    y_meas = data.y
+    sel = np.ones(len(y_meas), bool) if mask is None else mask
+
+    def resid(th: Array) -> Array:
+        ys = simulate(names, th, data)
+        r = ys - y_meas
+        r = np.where(np.isfinite(r), r, big)
+        return r[sel]
+
+    res = optimize.least_squares(resid, x_start, bounds=(lo, hi), x_scale=xs,
+                                 max_nfev=max_nfev, method="trf", diff_step=1e-4)
+    y_fit = simulate(names, res.x, data)
+    y_meas = data.y
+    r = np.where(np.isfinite(y_fit - y_meas), y_fit - y_meas, big)
+    rss = float(r[sel] @ r[sel])
+    n = int(sel.sum())
+    jac = res.jac
+    try:
+        s2 = rss / max(n - len(names), 1)
+        cov = np.linalg.pinv(jac.T @ jac) * s2
+        sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    except (np.linalg.LinAlgError, ValueError):
+        sigma = np.full(len(names), math.nan)
+    return ModelFit(tuple(effects), names, tuple(float(v) for v in res.x),
+                    tuple(float(v) for v in sigma), rss, n, y_fit)
+
+
+def scan_effect(data: FitData, base: ModelFit, name: str) -> float:
+    """The grid start of effect ``name`` with the lowest error, other parameters at ``base``."""
+    k = 2 * len(data.segments)
+    names = base.names[:-k] + (f"effect:{name}",) + base.names[-k:]
+    best, best_z = math.inf, 0.0
+    y_meas = data.y
+    for z in cand.start_grid(name, data.scales):
+        th = base.theta[:-k] + (z,) + base.theta[-k:]
+        ys = simulate(names, th, data)
+        r = ys - y_meas
+        rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
+        if rss < best:
+            best, best_z = rss, z
+    return best_z

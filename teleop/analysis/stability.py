@@ -1,0 +1,250 @@
+"""Stability and passivity metrics of one teleoperation run (pure functions over time series).
+
+A run is given as :class:`RunSignals` (uniformly or non-uniformly sampled numpy arrays on one
+time base); :func:`classify_run` turns it into :class:`RunMetrics`.
+
+Definitions
+-----------
+``stable``
+    The loop shows **no sustained and no growing oscillation**, and every signal stays finite.
+    For each oscillation signal (the hand set-point, the finger angle and the displayed force)
+    the slow, operator-driven component is removed with a zero-phase high-pass filter
+    (:attr:`StabilityCriteria.highpass_hz`, below which the operator's grasp script lives: its
+    ramps last about a second).  What remains is the loop's own oscillation.  Its RMS is taken in
+    an *early* and a *late* window (:attr:`StabilityCriteria.early_window` and
+    ``late_window``, fractions of the run) and normalised by the signal's scale (the set-point
+    range for angles, the trigger's force limit for the force).  The run is unstable when, for
+    any signal, the late RMS is above :attr:`StabilityCriteria.sustained_fraction` of the scale
+    (a sustained oscillation or limit cycle; saturation keeps a delayed unstable loop bounded, so
+    growth alone would miss it), or when the late RMS exceeds the early one by
+    :attr:`StabilityCriteria.growth_ratio` while above the noise floor
+    :attr:`StabilityCriteria.floor_fraction` (a growing oscillation not yet at its limit).
+    The share of high-passed power above :attr:`StabilityCriteria.hf_hz` (~5 Hz) is reported as
+    ``hf_power_fraction`` (Rodriguez-Seda et al. 2009) but does not decide ``stable``.
+
+``passive``
+    The controller plus the channel generate no energy: the energy delivered out of the two
+    ports (into the operator's finger and into the hand's environment) never exceeds the
+    energy taken in at the ports plus the initial energy of the tanks, at every sample, within
+    a numerical tolerance (:attr:`StabilityCriteria.energy_tol_j` plus
+    :attr:`StabilityCriteria.energy_rel_tol` of the energy throughput).
+    ``energy_generated_j`` is the largest excess over the run (<= 0 when passive).
+
+``tracking_rms_rad``
+    RMS of the finger angle against the set-point delayed by the forward path delay (what the
+    hand could at best do).
+
+``force_rms_n``
+    RMS of the displayed force against the force measured at the hand, delayed by the backward
+    path delay.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import signal as sps
+
+Array = NDArray[np.float64]
+
+__all__ = [
+    "RunSignals", "StabilityCriteria", "OscillationMetrics", "RunMetrics",
+    "classify_run", "oscillation_metrics", "energy_generated_j", "delayed", "rms_error",
+    "highpass",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class RunSignals:
+    """The time series of one run that the metrics need (all arrays share ``t_s``).
+
+    ``energy_out_j``/``energy_in_j`` are cumulative energies (monotone, >= 0) delivered out of
+    and taken in at the two physical ports together (operator's finger, hand environment).
+    ``tank_j`` has one column per tank (may have zero columns for controllers without tanks).
+    """
+
+    t_s: Array
+    setpoint_rad: Array
+    finger_rad: Array
+    force_displayed_n: Array
+    force_measured_n: Array
+    energy_out_j: Array
+    energy_in_j: Array
+    tank_j: Array
+    initial_energy_j: float = 0.0
+    forward_delay_s: float = 0.0
+    backward_delay_s: float = 0.0
+    setpoint_scale_rad: float = 3.0
+    force_scale_n: float = 8.0
+    limited_count: int = 0
+    steps: int = 0
+    dropped_messages: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class StabilityCriteria:
+    """Thresholds of the ``stable`` and ``passive`` classification (see the module doc)."""
+
+    highpass_hz: float = 2.0
+    hf_hz: float = 5.0
+    early_window: tuple[float, float] = (0.2, 0.5)
+    late_window: tuple[float, float] = (0.6, 1.0)
+    sustained_fraction: float = 0.03
+    growth_ratio: float = 2.0
+    floor_fraction: float = 0.005
+    energy_tol_j: float = 1e-6
+    energy_rel_tol: float = 1e-6
+
+
+@dataclass(frozen=True, slots=True)
+class OscillationMetrics:
+    """Oscillation of one signal after removing its operator-driven component."""
+
+    early_rms: float
+    late_rms: float
+    scale: float
+    hf_power_fraction: float
+
+    @property
+    def late_fraction(self) -> float:
+        """Late RMS as a fraction of the signal's scale."""
+        return self.late_rms / self.scale if self.scale > 0 else math.inf
+
+    @property
+    def growth(self) -> float:
+        """Late RMS over early RMS (inf when the early window is quiet and the late is not)."""
+        if self.early_rms > 0:
+            return self.late_rms / self.early_rms
+        return 1.0 if self.late_rms == 0 else math.inf
+
+    def sustained(self, c: StabilityCriteria) -> bool:
+        """Late oscillation above the sustained-amplitude threshold."""
+        return self.late_fraction > c.sustained_fraction
+
+    def growing(self, c: StabilityCriteria) -> bool:
+        """Late oscillation grown by ``growth_ratio`` and above the noise floor."""
+        return self.late_fraction > c.floor_fraction and self.growth > c.growth_ratio
+
+
+@dataclass(frozen=True, slots=True)
+class RunMetrics:
+    """What :func:`classify_run` reports for one run."""
+
+    stable: bool
+    passive: bool
+    energy_generated_j: float
+    tracking_rms_rad: float
+    force_rms_n: float
+    tank_min_j: float
+    limited_count: int
+    limited_fraction: float
+    dropped_messages: int
+    oscillation_index: float  # largest late oscillation RMS / scale over the signals
+    growth_ratio: float  # largest late/early oscillation ratio over the signals
+    hf_power_fraction: float  # largest share of oscillation power above hf_hz
+    reason: str  # why unstable ("" when stable)
+
+
+def _uniform(t: Array, x: Array) -> tuple[Array, float]:
+    """``x`` resampled on a uniform grid with the median step of ``t``."""
+    dt = float(np.median(np.diff(t)))
+    if np.allclose(np.diff(t), dt, rtol=1e-6, atol=1e-12):
+        return x, dt
+    grid = np.arange(t[0], t[-1] + 0.5 * dt, dt)
+    return np.interp(grid, t, x), dt
+
+
+def highpass(x: Array, dt_s: float, cutoff_hz: float) -> Array:
+    """Zero-phase 2nd-order Butterworth high-pass of a uniformly sampled signal."""
+    nyq = 0.5 / dt_s
+    if cutoff_hz >= nyq or len(x) < 16:
+        return x - np.mean(x)
+    sos = sps.butter(2, cutoff_hz / nyq, btype="highpass", output="sos")
+    return np.asarray(sps.sosfiltfilt(sos, x, padtype="even"), dtype=float)
+
+
+def _window(n: int, frac: tuple[float, float]) -> slice:
+    a, b = int(round(frac[0] * n)), int(round(frac[1] * n))
+    return slice(min(a, n - 1), max(b, min(a, n - 1) + 1))
+
+
+def oscillation_metrics(t_s: Array, x: Array, scale: float,
+                        c: StabilityCriteria = StabilityCriteria()) -> OscillationMetrics:
+    """Early/late oscillation RMS and high-frequency share of ``x`` (see module doc)."""
+    xu, dt = _uniform(np.asarray(t_s, float), np.asarray(x, float))
+    hp = highpass(xu, dt, c.highpass_hz)
+    n = len(hp)
+    early, late = hp[_window(n, c.early_window)], hp[_window(n, c.late_window)]
+    early_rms = float(np.sqrt(np.mean(early**2)))
+    late_rms = float(np.sqrt(np.mean(late**2)))
+    spec = np.abs(np.fft.rfft(hp)) ** 2
+    freqs = np.fft.rfftfreq(n, dt)
+    total = float(np.sum(spec))
+    hf = float(np.sum(spec[freqs >= c.hf_hz]) / total) if total > 0 else 0.0
+    return OscillationMetrics(early_rms, late_rms, scale, hf)
+
+
+def delayed(t_s: Array, x: Array, delay_s: float) -> Array:
+    """``x(t - delay_s)`` on the grid ``t_s`` (held at its first value before the start)."""
+    return np.interp(np.asarray(t_s) - delay_s, t_s, x, left=float(x[0]))
+
+
+def rms_error(t_s: Array, actual: Array, reference: Array, delay_s: float) -> float:
+    """RMS of ``actual(t) - reference(t - delay_s)``."""
+    err = np.asarray(actual) - delayed(t_s, np.asarray(reference), delay_s)
+    return float(np.sqrt(np.mean(err**2))) if len(err) else 0.0
+
+
+def energy_generated_j(energy_out_j: Array, energy_in_j: Array, initial_energy_j: float) -> float:
+    """Largest excess of energy delivered over energy taken plus initial tank energy."""
+    excess = np.asarray(energy_out_j) - np.asarray(energy_in_j) - initial_energy_j
+    return float(np.max(excess)) if len(excess) else 0.0
+
+
+def classify_run(s: RunSignals, c: StabilityCriteria = StabilityCriteria()) -> RunMetrics:
+    """Classify one run as stable/passive and compute its error and energy metrics."""
+    t = np.asarray(s.t_s, float)
+    osc_signals = {
+        "set-point": (s.setpoint_rad, s.setpoint_scale_rad),
+        "finger angle": (s.finger_rad, s.setpoint_scale_rad),
+        "displayed force": (s.force_displayed_n, s.force_scale_n),
+    }
+    reasons: list[str] = []
+    finite = all(np.all(np.isfinite(a)) for a in
+                 (t, s.setpoint_rad, s.finger_rad, s.force_displayed_n, s.force_measured_n))
+    osc_index, growth, hf = 0.0, 0.0, 0.0
+    if not finite:
+        reasons.append("non-finite signal")
+    else:
+        for name, (x, scale) in osc_signals.items():
+            m = oscillation_metrics(t, np.asarray(x, float), scale, c)
+            osc_index = max(osc_index, m.late_fraction)
+            growth = max(growth, m.growth if math.isfinite(m.growth) else 1e9)
+            hf = max(hf, m.hf_power_fraction)
+            if m.sustained(c):
+                reasons.append(f"sustained {name} oscillation ({m.late_fraction:.1%} of scale)")
+            elif m.growing(c):
+                reasons.append(f"growing {name} oscillation (x{m.growth:.1f})")
+    gen = energy_generated_j(s.energy_out_j, s.energy_in_j, s.initial_energy_j)
+    throughput = float(np.max(s.energy_out_j, initial=0.0) + np.max(s.energy_in_j, initial=0.0))
+    tol = c.energy_tol_j + c.energy_rel_tol * (throughput + s.initial_energy_j)
+    tank = np.asarray(s.tank_j, float)
+    tank_min = float(np.min(tank)) if tank.size else math.nan
+    return RunMetrics(
+        stable=not reasons,
+        passive=bool(np.isfinite(gen) and gen <= tol),
+        energy_generated_j=gen,
+        tracking_rms_rad=rms_error(t, s.finger_rad, s.setpoint_rad, s.forward_delay_s),
+        force_rms_n=rms_error(t, s.force_displayed_n, s.force_measured_n, s.backward_delay_s),
+        tank_min_j=tank_min,
+        limited_count=int(s.limited_count),
+        limited_fraction=(s.limited_count / s.steps) if s.steps else 0.0,
+        dropped_messages=int(s.dropped_messages),
+        oscillation_index=osc_index,
+        growth_ratio=growth,
+        hf_power_fraction=hf,
+        reason="; ".join(reasons),
+    )

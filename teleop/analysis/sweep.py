@@ -1,0 +1,307 @@
+"""The delay sweep: run the loop over a grid of delays, losses and controllers; classify each run.
+
+:func:`run_delay_sweep` is independent of *how* a run is executed: it is given a
+:data:`PointRunner` (a picklable top-level function ``runner(cfg, duration_s) -> RunSignals``)
+that runs the full loop for one configured point.  The CLI wires in the services' lockstep
+runner (in-process bus, virtual clock) or the live zenoh services.  Points run in a ``spawn``
+process pool when ``workers > 1``; every point's seeds derive from the sweep seed and the
+point's own indices, so results do not depend on the order or the pool size.
+
+After the grid, the largest stable delay of every controller at zero loss is bracketed by
+the grid and, when ``refine_steps > 0``, narrowed by bisection (extra runs) so it can be set
+beside the linearised loop's prediction.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from teleop.analysis.stability import RunMetrics, RunSignals, StabilityCriteria, classify_run
+from teleop.config import TeleopConfig
+from teleop.errors import UserInputError
+
+__all__ = ["SweepPoint", "SweepRun", "SweepResult", "PointRunner", "ProgressFn",
+           "point_config", "run_delay_sweep", "max_stable_delay", "format_table"]
+
+PointRunner = Callable[[TeleopConfig, float], RunSignals]
+ProgressFn = Callable[[int, int, "SweepRun"], None]
+
+
+@dataclass(frozen=True, slots=True)
+class SweepPoint:
+    """One point of the grid: controller, one-way master<->controller delay, jitter, loss."""
+
+    controller: str
+    delay_s: float
+    jitter_s: float
+    loss: float
+    seed: int
+
+
+@dataclass(frozen=True, slots=True)
+class SweepRun:
+    """A point and its metrics."""
+
+    point: SweepPoint
+    metrics: RunMetrics
+    wall_s: float
+    refine: bool = False  # an extra run of the bisection for the largest stable delay
+    signals: RunSignals | None = field(default=None, compare=False, repr=False)
+
+    def row(self) -> dict[str, Any]:
+        """The JSON row (DESIGN.md contract keys first, then extras)."""
+        m = self.metrics
+        return {
+            "controller": self.point.controller, "delay_s": self.point.delay_s,
+            "jitter_s": self.point.jitter_s, "loss": self.point.loss, "stable": m.stable,
+            "passive": m.passive, "energy_generated_j": m.energy_generated_j,
+            "tracking_rms_rad": m.tracking_rms_rad, "force_rms_n": m.force_rms_n,
+            "tank_min_j": m.tank_min_j, "limited_count": m.limited_count,
+            "limited_fraction": m.limited_fraction, "dropped_messages": m.dropped_messages,
+            "oscillation_index": m.oscillation_index, "growth_ratio": m.growth_ratio,
+            "hf_power_fraction": m.hf_power_fraction, "reason": m.reason,
+            "seed": self.point.seed, "refine": self.refine, "wall_s": self.wall_s,
+        }
+
+
+@dataclass(frozen=True, slots=True)
+class SweepResult:
+    """All runs of a sweep, the predicted and the measured largest stable delays."""
+
+    runs: tuple[SweepRun, ...]
+    predicted_max_stable_delay_s: tuple[tuple[str, float], ...]
+    measured_max_stable_delay_s: tuple[tuple[str, float], ...]
+    measured_bracket_s: tuple[tuple[str, float, float], ...]
+    mode: str
+    seed: int
+    duration_s: float
+    wall_s: float
+    notes: tuple[str, ...] = field(default=())
+
+    def grid_runs(self) -> tuple[SweepRun, ...]:
+        """The grid runs (without the bisection runs)."""
+        return tuple(r for r in self.runs if not r.refine)
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``teleop sweep --json`` object (DESIGN.md contract plus extra keys)."""
+        return {
+            "runs": [r.row() for r in self.runs],
+            "predicted_max_stable_delay_s": dict(self.predicted_max_stable_delay_s),
+            "measured_max_stable_delay_s": dict(self.measured_max_stable_delay_s),
+            "measured_bracket_s": {c: [lo, hi] for c, lo, hi in self.measured_bracket_s},
+            "mode": self.mode, "seed": self.seed, "duration_s": self.duration_s,
+            "wall_s": self.wall_s, "notes": list(self.notes),
+        }
+
+
+def point_config(cfg: TeleopConfig, p: SweepPoint) -> TeleopConfig:
+    """``cfg`` with the point's controller, delay, jitter, loss and seeds applied.
+
+    Delay, jitter and loss act on the master<->controller link in both directions; the
+    controller<->hand link keeps what ``cfg`` says.
+    """
+    link = cfg.links.master_controller
+    link = replace(link, delay_s=p.delay_s, backward_delay_s=None, loss=p.loss,
+                   jitter=("uniform" if p.jitter_s > 0 else "none") if link.jitter == "none"
+                   else link.jitter, jitter_s=p.jitter_s, seed=p.seed)
+    hand_link = replace(cfg.links.controller_hand, seed=p.seed + 1)
+    links = replace(cfg.links, master_controller=link, controller_hand=hand_link)
+    return replace(cfg, links=links, controller=replace(cfg.controller, kind=p.controller),
+                   session=replace(cfg.session, seed=p.seed))
+
+
+def _point_seed(seed: int, ci: int, di: int, li: int) -> int:
+    return (seed * 1_000_003 + ci * 10_007 + di * 101 + li * 7) % (2**31 - 1)
+
+
+def decimate(s: RunSignals, rate_hz: float = 200.0) -> RunSignals:
+    """``s`` keeping about ``rate_hz`` samples per second (for logging and plotting)."""
+    if len(s.t_s) < 2:
+        return s
+    step = max(1, int(round(1.0 / (rate_hz * float(np.median(np.diff(s.t_s)))))))
+    arrays = {f: getattr(s, f)[::step] for f in ("t_s", "setpoint_rad", "finger_rad",
+                                                 "force_displayed_n", "force_measured_n",
+                                                 "energy_out_j", "energy_in_j", "tank_j")}
+    return replace(s, **arrays)
+
+
+def _run_one(runner: PointRunner, cfg: TeleopConfig, point: SweepPoint, duration_s: float,
+             criteria: StabilityCriteria, refine: bool, keep: bool = False) -> SweepRun:
+    t0 = time.perf_counter()
+    signals = runner(point_config(cfg, point), duration_s)
+    metrics = classify_run(signals, criteria)
+    return SweepRun(point, metrics, time.perf_counter() - t0, refine,
+                    decimate(signals) if keep else None)
+
+
+def max_stable_delay(runs: Sequence[SweepRun], controller: str,
+                     loss: float = 0.0) -> tuple[float, float]:
+    """(largest delay with every delay up to it stable, smallest unstable delay above it).
+
+    Only the runs of ``controller`` at ``loss``; ``inf`` when no run is unstable.
+    """
+    pts = sorted((r.point.delay_s, r.metrics.stable) for r in runs
+                 if r.point.controller == controller and r.point.loss == loss)
+    lo, hi = math.nan, math.inf
+    for d, stable in pts:
+        if not stable:
+            hi = d
+            break
+        lo = d
+    return lo, hi
+
+
+class _Pool:
+    """Serial or spawn-process execution of runs, in submission order."""
+
+    def __init__(self, workers: int) -> None:
+        self.workers = workers
+        self._ex: ProcessPoolExecutor | None = None
+        if workers > 1:
+            self._ex = ProcessPoolExecutor(workers,
+                                           mp_context=multiprocessing.get_context("spawn"))
+
+    def map(self, fn: Callable[..., SweepRun], jobs: list[tuple[Any, ...]],
+            done: Callable[[SweepRun], None]) -> list[SweepRun]:
+        if self._ex is None:
+            out = []
+            for job in jobs:
+                out.append(fn(*job))
+                done(out[-1])
+            return out
+        futures = [self._ex.submit(fn, *job) for job in jobs]
+        results: list[SweepRun] = []
+        for fut in futures:
+            results.append(fut.result())
+            done(results[-1])
+        return results
+
+    def close(self) -> None:
+        if self._ex is not None:
+            self._ex.shutdown()
+
+
+def run_delay_sweep(
+    cfg: TeleopConfig,
+    runner: PointRunner,
+    delays_s: Sequence[float],
+    losses: Sequence[float],
+    controllers: Sequence[str],
+    *,
+    mode: str = "lockstep",
+    seed: int = 0,
+    duration_s: float = 6.0,
+    jitter_s: float = 0.0,
+    progress: ProgressFn | None = None,
+    workers: int = 1,
+    refine_steps: int = 0,
+    predicted: Sequence[tuple[str, float]] = (),
+    criteria: StabilityCriteria = StabilityCriteria(),
+    keep_signals: bool = False,
+) -> SweepResult:
+    """Run every (controller, delay, loss) point; classify; bracket the largest stable delay."""
+    if not delays_s or not losses or not controllers:
+        raise UserInputError("sweep: delays, losses and controllers must each be non-empty")
+    if any(d < 0 for d in delays_s) or any(not 0 <= p <= 1 for p in losses):
+        raise UserInputError("sweep: delays must be >= 0 and losses within [0, 1]")
+    t0 = time.perf_counter()
+    delays = sorted(set(float(d) for d in delays_s))
+    points = [SweepPoint(c, d, jitter_s, float(p), _point_seed(seed, ci, di, li))
+              for ci, c in enumerate(controllers) for li, p in enumerate(losses)
+              for di, d in enumerate(delays)]
+    total = len(points) + refine_steps * (1 if 0.0 in losses else 0) * len(controllers)
+    done_runs: list[SweepRun] = []
+
+    def done(run: SweepRun) -> None:
+        done_runs.append(run)
+        if progress is not None:
+            progress(len(done_runs), total, run)
+
+    pool = _Pool(workers)
+    try:
+        runs = pool.map(_run_one, [(runner, cfg, p, duration_s, criteria, False, keep_signals)
+                                   for p in points], done)
+        brackets = _refine(pool, runner, cfg, runs, controllers, losses, refine_steps,
+                           duration_s, jitter_s, seed, criteria, done)
+    finally:
+        pool.close()
+    runs = runs + [r for r in done_runs if r.refine]
+    runs.sort(key=lambda r: (list(controllers).index(r.point.controller), r.point.loss,
+                             r.point.delay_s))
+    measured = tuple((c, lo) for c, lo, _ in brackets)
+    return SweepResult(tuple(runs), tuple(predicted), measured, tuple(brackets), mode, seed,
+                       duration_s, time.perf_counter() - t0)
+
+
+def _refine(pool: _Pool, runner: PointRunner, cfg: TeleopConfig, runs: list[SweepRun],
+            controllers: Sequence[str], losses: Sequence[float], steps: int, duration_s: float,
+            jitter_s: float, seed: int, criteria: StabilityCriteria,
+            done: Callable[[SweepRun], None]) -> list[tuple[str, float, float]]:
+    """Bisect each controller's stable/unstable bracket at zero loss, all controllers at once."""
+    loss0 = 0.0 if 0.0 in losses else None
+    if loss0 is None:
+        return []
+    brackets = {c: max_stable_delay(runs, c, loss0) for c in controllers}
+    for step in range(steps):
+        active = [c for c, (lo, hi) in brackets.items() if math.isfinite(hi) and
+                  not math.isnan(lo)]
+        if not active:
+            break
+        jobs = []
+        for c in active:
+            lo, hi = brackets[c]
+            mid = 0.5 * (lo + hi)
+            ci = list(controllers).index(c)
+            p = SweepPoint(c, mid, jitter_s, loss0, _point_seed(seed, ci, 1000 + step, 0))
+            jobs.append((runner, cfg, p, duration_s, criteria, True))
+        for c, run in zip(active, pool.map(_run_one, jobs, done), strict=True):
+            lo, hi = brackets[c]
+            brackets[c] = (run.point.delay_s, hi) if run.metrics.stable else (lo, run.point.delay_s)
+    return [(c, lo, hi) for c, (lo, hi) in brackets.items()]
+
+
+def as_dict(run: SweepRun) -> dict[str, Any]:
+    """A plain dict of a run (for logging)."""
+    return {"point": asdict(run.point), "metrics": asdict(run.metrics), "wall_s": run.wall_s}
+
+
+def format_table(result: SweepResult) -> str:
+    """The results as a fixed-width text table, then the largest stable delays."""
+    head = (f"{'controller':<10} {'delay_s':>8} {'loss':>5} {'stable':>6} {'passive':>7} "
+            f"{'E_gen_J':>10} {'track_rad':>9} {'force_N':>8} {'tank_min_J':>10} "
+            f"{'limited':>8} {'osc':>6}")
+    lines = [head, "-" * len(head)]
+    for r in result.runs:
+        m, p = r.metrics, r.point
+        tank = f"{m.tank_min_j:10.3f}" if math.isfinite(m.tank_min_j) else f"{'-':>10}"
+        lines.append(
+            f"{p.controller:<10} {p.delay_s:8.4f} {p.loss:5.2f} {'yes' if m.stable else 'NO':>6} "
+            f"{'yes' if m.passive else 'NO':>7} {m.energy_generated_j:10.3g} "
+            f"{m.tracking_rms_rad:9.3f} {m.force_rms_n:8.3f} {tank} "
+            f"{m.limited_fraction:8.1%} {m.oscillation_index:6.3f}"
+            + ("  (bisection)" if r.refine else ""))
+    pred = dict(result.predicted_max_stable_delay_s)
+    brackets = {c: (lo, hi) for c, lo, hi in result.measured_bracket_s}
+    lines.append("")
+    lines.append("largest stable one-way delay (loss 0):")
+    for c in dict.fromkeys(r.point.controller for r in result.runs):
+        lo, hi = brackets.get(c, (math.nan, math.nan))
+        meas = ("unstable at every delay" if math.isnan(lo) else
+                f"> {lo:.4f} s (stable at every delay swept)" if math.isinf(hi) else
+                f"{lo:.4f} s (unstable at {hi:.4f} s)")
+        line = f"  {c:<10} measured {meas}"
+        if c in pred:
+            line += f"; predicted (linearised loop) {pred[c]:.4f} s"
+            if math.isfinite(hi) and not math.isnan(lo) and pred[c] > 0:
+                line += f"; measured/predicted {lo / pred[c]:.2f}"
+        lines.append(line)
+    lines.extend(f"note: {n}" for n in result.notes)
+    return "\n".join(lines)

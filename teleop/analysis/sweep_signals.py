@@ -1,0 +1,130 @@
+"""Turn the services' run results into :class:`~teleop.analysis.stability.RunSignals`.
+
+The library does not import ``services``; :func:`signals_from_lockstep` reads the attributes of
+a ``services.lockstep.LockstepResult`` (duck typing), and :func:`signals_from_columns` the same
+quantities from named columns (live recordings).
+
+Which signal is which (finger 1, the first enabled finger, stands for the hand):
+
+* set-point: the joint set-point the *controller* commands (a delayed image of the trigger);
+* finger angle: the finger's joint-side motor angle at the hand (what the set-point commands);
+  tracking is measured against the set-point delayed by the controller->hand delay;
+* measured force: what the displayed force should be, computed at the hand from its pressures
+  (per-finger maximum, combined as the transparency layer does, times
+  ``force_per_pressure_n``), unfiltered and undelayed; the force error is taken against it
+  delayed by the backward path (hand->controller->master);
+* energies: port energies of master and hand, initial tank energy, from the services' ledgers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from teleop.analysis.stability import RunSignals
+from teleop.config import TeleopConfig
+
+Array = NDArray[np.float64]
+
+__all__ = ["signals_from_lockstep", "signals_from_columns", "fill_nan", "measured_force_n",
+           "path_delays_s"]
+
+
+def fill_nan(x: Array, before: float | None = None) -> Array:
+    """Forward-fill NaNs; leading NaNs take ``before`` (or the first finite value; 0 if none)."""
+    x = np.asarray(x, dtype=float).copy()
+    ok = np.isfinite(x)
+    if not ok.any():
+        return np.full_like(x, 0.0 if before is None else before)
+    idx = np.where(ok, np.arange(len(x)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = int(np.argmax(ok))
+    out = x[idx]
+    out[:first] = x[first] if before is None else before
+    return out
+
+
+def measured_force_n(pressure: Array, cfg: TeleopConfig) -> Array:
+    """The force the transparency layer would display for these hand pressures (n, 27)."""
+    tr = cfg.controller.transparency
+    p = np.asarray(pressure, float).reshape(len(pressure), 3, -1)
+    per_finger = np.nanmax(np.nan_to_num(p, nan=0.0), axis=2)
+    enabled = np.array([bool(e) for e in (tuple(tr.finger_enable) + (False,) * 3)[:3]])
+    per_finger = np.where(enabled[None, :], per_finger, 0.0)
+    if tr.force_combine == "sum":
+        comb = per_finger.sum(axis=1)
+    elif tr.force_combine == "mean":
+        comb = per_finger.sum(axis=1) / max(1, int(enabled.sum()))
+    else:
+        comb = per_finger.max(axis=1)
+    return np.minimum(tr.force_per_pressure_n * comb, cfg.master.force_max_n)
+
+
+def path_delays_s(cfg: TeleopConfig) -> tuple[float, float]:
+    """(controller->hand delay, hand->controller->master delay) configured (no jitter)."""
+    mc, ch = cfg.links.master_controller, cfg.links.controller_hand
+    ch_back = ch.delay_s if ch.backward_delay_s is None else ch.backward_delay_s
+    mc_back = mc.delay_s if mc.backward_delay_s is None else mc.backward_delay_s
+    return ch.delay_s, ch_back + mc_back
+
+
+def _finger(cfg: TeleopConfig) -> int:
+    en = tuple(cfg.controller.transparency.finger_enable)
+    return next((i for i, e in enumerate(en[:3]) if e), 0)
+
+
+def _last(x: Any) -> float:
+    a = np.asarray(x, float)
+    a = a[np.isfinite(a)]
+    return float(a[-1]) if a.size else 0.0
+
+
+def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
+                         initial_j: float) -> RunSignals:
+    """RunSignals from named columns (the LockstepResult attribute names, 2-D where (n, k))."""
+    f = _finger(cfg)
+    t = np.asarray(cols["t_s"], float)
+    tr = cfg.controller.transparency
+    fwd, back = path_delays_s(cfg)
+    tanks = [fill_nan(np.asarray(cols[k], float)) for k in
+             ("master_tank_j", "hand_tank_j") if k in cols]
+    tank = np.column_stack(tanks) if tanks and initial_j > 0 else np.zeros((len(t), 0))
+    limited = _last(cols.get("master_limited_count", [0.0])) + _last(
+        cols.get("hand_limited_count", [0.0]))
+    dropped = sum(_last(cols[k]) for k in ("dropped_master_state", "dropped_force_command",
+                                           "dropped_hand_command", "dropped_hand_state")
+                  if k in cols)
+    return RunSignals(
+        t_s=t,
+        setpoint_rad=fill_nan(np.asarray(cols["setpoint_rad"], float)[:, f], tr.open_angle_rad),
+        finger_rad=fill_nan(np.asarray(cols["motor_angle_rad"], float)[:, f]),
+        force_displayed_n=fill_nan(np.asarray(cols["displayed_force_n"], float), 0.0),
+        force_measured_n=measured_force_n(np.asarray(cols["pressure"], float), cfg),
+        energy_out_j=fill_nan(np.asarray(cols["master_port_out_j"], float)
+                              + np.asarray(cols["hand_port_out_j"], float), 0.0),
+        energy_in_j=fill_nan(np.asarray(cols["master_port_in_j"], float)
+                             + np.asarray(cols["hand_port_in_j"], float), 0.0),
+        tank_j=tank,
+        initial_energy_j=float(initial_j),
+        forward_delay_s=fwd,
+        backward_delay_s=back,
+        setpoint_scale_rad=abs(tr.closed_angle_rad - tr.open_angle_rad) or 1.0,
+        force_scale_n=cfg.master.force_max_n or 1.0,
+        limited_count=int(limited),
+        steps=len(t),
+        dropped_messages=int(dropped),
+    )
+
+
+def signals_from_lockstep(result: Any, cfg: TeleopConfig) -> RunSignals:
+    """RunSignals from a ``services.lockstep.LockstepResult``."""
+    names = ("t_s", "setpoint_rad", "motor_angle_rad", "displayed_force_n", "pressure",
+             "master_port_out_j", "hand_port_out_j", "master_port_in_j", "hand_port_in_j",
+             "master_tank_j", "hand_tank_j", "master_limited_count", "hand_limited_count",
+             "dropped_master_state", "dropped_force_command", "dropped_hand_command",
+             "dropped_hand_state")
+    cols = {n: getattr(result, n) for n in names}
+    return signals_from_columns(cols, cfg, float(result.initial_j))

@@ -1,0 +1,56 @@
+"""``teleop bench NAME``: benchmarks, one flat JSON object of figures (units in the keys).
+
+Each benchmark is a ``"module:function"`` in :data:`BENCHES`, imported only when run; the
+function takes no arguments and returns a flat ``dict`` of figures.
+
+Example::
+
+    teleop bench transport --json -
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from collections.abc import Callable
+from typing import Any
+
+from teleop.commands.common import add_json_option, info, write_json
+from teleop.errors import UserInputError
+
+#: Benchmark name -> "module:function" (lazily imported).
+BENCHES: dict[str, str] = {
+    "transport": "teleop.transport.bench:bench_transport",
+    "sim": "sim.bench:bench_sim",
+    "loop": "services.bench:bench_loop",
+}
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add the ``bench`` subcommand."""
+    p = sub.add_parser("bench", help="run a benchmark (JSON figures)")
+    p.add_argument("name", help="benchmark: " + ", ".join(sorted(BENCHES)))
+    add_json_option(p)
+    p.set_defaults(run=run)
+
+
+def _load(name: str) -> Callable[[], dict[str, Any]]:
+    try:
+        target = BENCHES[name]
+    except KeyError:
+        raise UserInputError(f"unknown benchmark {name!r} (known: "
+                             f"{', '.join(sorted(BENCHES))})") from None
+    module, func = target.split(":")
+    return getattr(importlib.import_module(module), func)  # type: ignore[no-any-return]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run one benchmark and print/write its figures."""
+    fn = _load(args.name)
+    info(args, f"bench {args.name}: running...")
+    figures = fn()
+    if args.json_path is None:
+        for key, value in figures.items():
+            print(f"{key}: {value:.6g}" if isinstance(value, float) else f"{key}: {value}")
+    write_json(args.json_path, figures)
+    return 0

@@ -1,0 +1,197 @@
+"""``teleop sweep``: the delay-sweep stability test (table, plot, JSON, optional rerun log).
+
+Examples::
+
+    teleop sweep                                   # the default lockstep sweep (config [sweep])
+    teleop sweep --json sweep.json --plot docs/sweep.png
+    teleop sweep --mode live --delays 0,0.05,0.2 --losses 0 --controllers two-layer --duration 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from typing import TYPE_CHECKING
+
+from teleop.commands.common import (
+    add_config_options,
+    add_json_option,
+    config_from_args,
+    nonneg_float,
+    positive_float,
+    write_json,
+)
+from teleop.errors import UserInputError
+
+if TYPE_CHECKING:
+    from teleop.analysis.stability import RunSignals
+    from teleop.analysis.sweep import SweepRun
+    from teleop.config import TeleopConfig
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    """Add the ``sweep`` subcommand."""
+    p = sub.add_parser("sweep", help="delay-sweep stability test: table, plot, JSON",
+                       description="Run the full loop (virtual operator, controller, simulated "
+                       "hand grasping an object) over a grid of one-way delays, losses and "
+                       "controllers; classify every run as stable/passive; compare the largest "
+                       "stable delay of direct control with the linearised loop's prediction. "
+                       "Defaults come from the [sweep] config section.")
+    add_config_options(p)
+    add_json_option(p)
+    p.add_argument("--mode", choices=("lockstep", "live"), default="lockstep",
+                   help="lockstep: in-process bus, virtual clock, deterministic (default); "
+                   "live: the real services over zenoh in real time")
+    p.add_argument("--seed", type=int, default=None, help="sweep seed (default: session.seed)")
+    p.add_argument("--duration", type=positive_float, default=None, metavar="S",
+                   help="seconds of (simulated) time per run (default: sweep.duration_s)")
+    p.add_argument("--delays", default=None, metavar="LIST",
+                   help="comma list of one-way master<->controller delays in s")
+    p.add_argument("--losses", default=None, metavar="LIST",
+                   help="comma list of loss probabilities (0-1)")
+    p.add_argument("--jitter", type=nonneg_float, default=None, metavar="S",
+                   help="jitter scale at every point (default: sweep.jitter_s)")
+    p.add_argument("--controllers", default=None, metavar="LIST",
+                   help="comma list of controllers (default: sweep.controllers)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="parallel runs (spawned processes; default: sweep.workers)")
+    p.add_argument("--refine", type=int, default=None, metavar="N",
+                   help="bisection runs that narrow each controller's largest stable delay "
+                   "(default: sweep.refine_steps)")
+    p.add_argument("--plot", default=None, metavar="PNG", help="write the sweep plot here")
+    p.add_argument("--rerun", default=None, metavar="PATH",
+                   help="log every run's signals to this .rrd file")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.set_defaults(run=run)
+
+
+def _floats(text: str | None, default: tuple[float, ...], what: str) -> tuple[float, ...]:
+    if text is None:
+        return default
+    out = []
+    for item in text.split(","):
+        try:
+            v = float(item)
+        except ValueError:
+            raise UserInputError(f"--{what}: {item.strip()!r} is not a number") from None
+        if not math.isfinite(v) or v < 0:
+            raise UserInputError(f"--{what}: {item.strip()!r} must be a finite number >= 0")
+        out.append(v)
+    if not out:
+        raise UserInputError(f"--{what}: empty list")
+    return tuple(out)
+
+
+def _names(text: str | None, default: tuple[str, ...], known: tuple[str, ...]) -> tuple[str, ...]:
+    if text is None:
+        return default
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    if not names:
+        raise UserInputError("--controllers: empty list")
+    for n in names:
+        if n not in known:
+            raise UserInputError(f"--controllers: unknown controller {n!r} "
+                                 f"(known: {', '.join(known)})")
+    return names
+
+
+class _Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled and sys.stderr is not None
+        self.t0 = time.perf_counter()
+
+    def __call__(self, done: int, total: int, run: SweepRun) -> None:
+        if not self.enabled:
+            return
+        total = max(total, done)
+        width = 30
+        fill = int(width * done / total)
+        p = run.point
+        state = "stable" if run.metrics.stable else "UNSTABLE"
+        sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} "
+                         f"{time.perf_counter() - self.t0:5.1f}s  {p.controller} "
+                         f"{p.delay_s * 1000:.0f} ms loss {p.loss:.0%}: {state}      ")
+        sys.stderr.flush()
+
+    def finish(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def lockstep_runner(cfg: TeleopConfig, duration_s: float) -> RunSignals:
+    """One point through the services' lockstep runner (a picklable top-level function)."""
+    from services.lockstep import run_lockstep
+
+    from teleop.analysis.sweep_signals import signals_from_lockstep
+
+    return signals_from_lockstep(run_lockstep(cfg, duration_s), cfg)
+
+
+def live_runner(cfg: TeleopConfig, duration_s: float) -> RunSignals:
+    """One point through the live services over zenoh (``teleop up`` in a subprocess)."""
+    from teleop.analysis.sweep_live import run_live_point
+
+    return run_live_point(cfg, duration_s)
+
+
+def predicted_limits(cfg: TeleopConfig) -> tuple[tuple[tuple[str, float], ...], tuple[str, ...]]:
+    """The linearised loop's largest stable one-way delay of direct control (and notes)."""
+    try:
+        from teleop.control.stability_limit import predicted_max_stable_delay_s
+    except ImportError as exc:
+        return (), (f"no prediction: {exc}",)
+    return (("direct", float(predicted_max_stable_delay_s(cfg))),), ()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the sweep and report."""
+    from teleop.analysis.sweep import format_table, run_delay_sweep
+    from teleop.config.control import ControllerConfig
+
+    cfg = config_from_args(args)
+    sc = cfg.sweep
+    known = ControllerConfig.__dataclass_fields__["kind"].metadata["choices"]
+    delays = _floats(args.delays, sc.delays_s, "delays")
+    losses = _floats(args.losses, sc.losses, "losses")
+    if any(p > 1 for p in losses):
+        raise UserInputError("--losses: loss probabilities must be within [0, 1]")
+    controllers = _names(args.controllers, sc.controllers, known)
+    seed = cfg.session.seed if args.seed is None else args.seed
+    duration = sc.duration_s if args.duration is None else args.duration
+    jitter = sc.jitter_s if args.jitter is None else args.jitter
+    workers = sc.workers if args.workers is None else args.workers
+    refine = sc.refine_steps if args.refine is None else args.refine
+    if workers < 1 or refine < 0:
+        raise UserInputError("--workers must be >= 1 and --refine >= 0")
+    if args.mode == "live":
+        workers = 1  # real-time runs share the machine; one at a time keeps timing honest
+    predicted, notes = predicted_limits(cfg)
+    runner = lockstep_runner if args.mode == "lockstep" else live_runner
+    progress = _Progress(not args.no_progress)
+    result = run_delay_sweep(cfg, runner, delays, losses, controllers, mode=args.mode, seed=seed,
+                             duration_s=duration, jitter_s=jitter, progress=progress,
+                             workers=workers, refine_steps=refine, predicted=predicted,
+                             keep_signals=bool(args.rerun))
+    progress.finish()
+    if notes:
+        from dataclasses import replace
+
+        result = replace(result, notes=result.notes + notes)
+    out = sys.stderr if args.json_path == "-" else sys.stdout
+    print(format_table(result), file=out)
+    print(f"{len(result.runs)} runs in {result.wall_s:.1f} s ({args.mode})", file=out)
+    write_json(args.json_path, result.to_json())
+    if args.plot:
+        from teleop.analysis.sweep_plot import plot_sweep
+
+        print(f"plot: {plot_sweep(result, args.plot)}", file=out)
+    if args.rerun:
+        from teleop.analysis.sweep_rerun import log_sweep
+
+        print(f"rerun log: {log_sweep(result, args.rerun)}", file=out)
+    return 0

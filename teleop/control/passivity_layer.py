@@ -1,0 +1,85 @@
+"""The hand's passivity layer: passive set-position modulation (Lee and Huang 2010).
+
+The position-servoed finger is modelled as a spring from the set-point ``y`` to the motor
+angle ``x`` whose torque saturates at the servo's torque limit (``tau = K e`` for
+``|e| <= e_s = tau_max / K``, ``tau_max sign(e)`` beyond), plus a damper ``B`` on ``xdot``
+(``K``, ``tau_max``: upper bounds of the servo's stiffness and torque; ``B``: a lower bound
+of its damping).  The servo spring's energy is the convex (Huber) potential
+``P(e) = K e^2 / 2`` for ``|e| <= e_s``, ``tau_max (|e| - e_s / 2)`` beyond.
+
+* Dissipation over a sample of length ``T`` in which ``x`` moved by ``dx``: by Cauchy-Schwarz
+  ``integral B xdot^2 dt >= B |dx|^2 / T``; this lower bound is credited to the tank
+  (``D(k)``).
+* Moving the set-point from ``y(k-1)`` to ``y(k)`` at the measured ``x(k)`` changes the spring
+  energy by ``dP = sum P(y(k) - x) - sum P(y(k-1) - x)``; the tank pays it.
+* The new set-point is the desired one pulled back along the ray from ``x(k)`` until
+  ``dP <= E`` (``E`` the energy the tank can spend).  For the quadratic potential this is
+  exactly Lee and Huang's projection onto the ball of squared radius
+  ``|y(k-1) - x|^2 + 2 E / K``; ``y = x`` (zero spring energy) is always affordable.
+
+Hence ``tank + P + environment storage`` never exceeds its initial value plus the energy the
+tank received: the hand plus its environment stay passive for any delay or loss, provided the
+servo is no stiffer (and no stronger) than modelled and no less damped than ``B``.
+"""
+
+from __future__ import annotations
+
+import math
+
+Triple = tuple[float, float, float]
+
+
+def servo_potential_j(e: float, stiffness: float, torque_max: float = math.inf) -> float:
+    """Energy of the (saturating) servo spring stretched by ``e``."""
+    a = abs(e)
+    e_s = torque_max / stiffness
+    if a <= e_s:
+        return 0.5 * stiffness * a * a
+    return torque_max * (a - 0.5 * e_s)
+
+
+def spring_energy_j(setpoint: Triple, x: Triple, stiffness: float,
+                    torque_max: float = math.inf) -> float:
+    """Total servo-spring energy of the three fingers."""
+    return sum(servo_potential_j(a - b, stiffness, torque_max)
+               for a, b in zip(setpoint, x, strict=True))
+
+
+def dissipation_lower_bound_j(x: Triple, x_prev: Triple, damping: float,
+                              dt_s: float) -> float:
+    """``B |x - x_prev|^2 / T``: energy the servo damping dissipated at least."""
+    if dt_s <= 0.0:
+        return 0.0
+    return damping * sum((a - b) ** 2 for a, b in zip(x, x_prev, strict=True)) / dt_s
+
+
+def pspm_project(desired: Triple, previous: Triple, x: Triple, budget_j: float,
+                 stiffness: float, torque_max: float = math.inf) -> tuple[Triple, float, bool]:
+    """Pull ``desired`` back towards ``x`` until affordable; return (set-point, dP, limited)."""
+    p_prev = spring_energy_j(previous, x, stiffness, torque_max)
+    allowed = p_prev + max(budget_j, 0.0)
+    d = (desired[0] - x[0], desired[1] - x[1], desired[2] - x[2])
+
+    def energy(lam: float) -> float:
+        return sum(servo_potential_j(lam * v, stiffness, torque_max) for v in d)
+
+    if energy(1.0) <= allowed:
+        return desired, energy(1.0) - p_prev, False
+    n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    lam_q = math.sqrt(2.0 * allowed / (stiffness * n2))  # quadratic-region solution
+    if all(abs(lam_q * v) * stiffness <= torque_max for v in d):
+        lam = lam_q * (1.0 - 1e-12)  # shrink a hair so rounding never overdraws the tank
+    else:
+        lo, hi = 0.0, 1.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if energy(mid) <= allowed:
+                lo = mid
+            else:
+                hi = mid
+        lam = lo
+    y = (x[0] + lam * d[0], x[1] + lam * d[1], x[2] + lam * d[2])
+    e_new = energy(lam)
+    if e_new > allowed:  # rounding at the edge: fall back to the always-affordable x
+        y, e_new = x, 0.0
+    return y, e_new - p_prev, True

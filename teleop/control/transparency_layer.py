@@ -1,0 +1,90 @@
+"""Transparency layer (report chapter 5.2): trigger opening -> finger set-points, and
+per-finger maximum pressure -> the force displayed on the trigger.
+
+* Set-points: ``s = clip(q / travel, 0, 1)`` (``q`` the trigger closing, 0 = open) and for
+  every enabled finger ``theta = open + (closed - open) * s ** exponent``; disabled fingers
+  stay at ``open``.
+* Force: ``p_i = max_j pressure_ij`` for every enabled finger (the maximum, not the average:
+  a cylinder loads only a few of the nine cells), combined across fingers (``max`` | ``mean``
+  | ``sum``), clipped at zero, scaled by ``force_per_pressure_n``, low-passed (first order,
+  exact discretisation ``y += (1 - exp(-2 pi f dt)) (u - y)``) and clipped to
+  ``+-force_max_n``.
+
+It knows nothing about energy: the passivity layers below limit what it asks for.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from teleop.control.interface import ControlParams
+from teleop.messages import FingerState
+
+Triple = tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class TransparencyState:
+    """The displayed-force filter's state."""
+
+    force_n: float = 0.0
+
+
+def grip_to_setpoints(grip_position_m: float, p: ControlParams) -> Triple:
+    """Finger set-points (rad) for a trigger closing of ``grip_position_m``."""
+    s = grip_position_m / p.trigger_travel_m if math.isfinite(grip_position_m) else 0.0
+    s = min(max(s, 0.0), 1.0) ** p.map_exponent
+    closed = p.open_angle_rad + (p.closed_angle_rad - p.open_angle_rad) * s
+    return tuple(closed if p.finger_enable[i] else p.open_angle_rad  # type: ignore[return-value]
+                 for i in range(3))
+
+
+def max_pressures(fingers: tuple[FingerState, ...], p: ControlParams) -> Triple:
+    """The largest pressure on each enabled finger (0 for disabled or missing fingers)."""
+    out = [0.0, 0.0, 0.0]
+    for i, f in enumerate(fingers[:3]):
+        if p.finger_enable[i] and f.pressure:
+            m = max(f.pressure)
+            out[i] = m if math.isfinite(m) else 0.0
+    return (out[0], out[1], out[2])
+
+
+def combined_force_n(max_p: Triple, p: ControlParams) -> float:
+    """Unfiltered displayed force from the per-finger maxima."""
+    vals = [v for v, on in zip(max_p, p.finger_enable[:3], strict=True) if on]
+    if not vals:
+        return 0.0
+    if p.force_combine == "max":
+        c = max(vals)
+    elif p.force_combine == "sum":
+        c = sum(vals)
+    else:
+        c = sum(vals) / len(vals)
+    return max(c, 0.0) * p.force_per_pressure_n
+
+
+def clip(x: float, limit: float) -> float:
+    """``x`` limited to ``[-limit, limit]`` (NaN -> 0)."""
+    if not math.isfinite(x):
+        return 0.0 if math.isnan(x) else math.copysign(limit, x)
+    return min(max(x, -limit), limit)
+
+
+def lowpass(prev: float, u: float, cutoff_hz: float, dt_s: float) -> float:
+    """One step of an exactly discretised first-order low-pass."""
+    a = 1.0 - math.exp(-2.0 * math.pi * cutoff_hz * max(dt_s, 0.0))
+    return prev + a * (u - prev)
+
+
+def transparency_force(state: TransparencyState, p: ControlParams,
+                       fingers: tuple[FingerState, ...] | None,
+                       dt_s: float) -> tuple[TransparencyState, float, Triple, float]:
+    """Filtered, clipped display force; returns (state, force_n, max_pressures, unfiltered)."""
+    if fingers is None:
+        mp: Triple = (0.0, 0.0, 0.0)
+    else:
+        mp = max_pressures(fingers, p)
+    raw = combined_force_n(mp, p)
+    f = clip(lowpass(state.force_n, raw, p.force_filter_hz, dt_s), p.force_max_n)
+    return TransparencyState(force_n=f), f, mp, raw

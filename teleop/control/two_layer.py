@@ -1,0 +1,239 @@
+"""``two-layer``: Franken et al. (2011) transparency layer + passivity layer with energy tanks.
+
+Master side (owns the operator's port): exact port energy ``w = -F(k-1) (q(k) - q(k-1))``,
+tank update ``H <- H - w + received``, upper limit, a quantum ``beta max(H - H_res, 0)`` sent
+as a monotone running total, then the desired force is limited (Franken's limiter against
+``H - H_min``, hard guard against ``H``), plus the tank level controller's damping.
+Controller: credits the increases of both incoming totals to its store, forwards
+``gamma * store`` split ``s : 1 - s`` to hand and master as running totals, and runs the
+transparency layer.  Hand side: passive set-position modulation
+(:mod:`teleop.control.passivity_layer`) against its own tank.
+
+See :mod:`teleop.control.energy_tank` and ``docs/controllers.md`` for the equations.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+from teleop.control.energy_channel import EnergyLedger, TotalReceiver, receive_total
+from teleop.control.energy_tank import (
+    cap_tank,
+    franken_limit,
+    guard_force,
+    port_work_j,
+    quantum_j,
+    split_work,
+    tlc_damping,
+)
+from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
+from teleop.control.passivity_layer import (
+    dissipation_lower_bound_j,
+    pspm_project,
+    spring_energy_j,
+)
+from teleop.control.transparency_layer import (
+    TransparencyState,
+    clip,
+    grip_to_setpoints,
+    transparency_force,
+)
+from teleop.messages import (
+    FingerState,
+    ForceCommand,
+    HandCommand,
+    HandMode,
+    HandState,
+    Header,
+    MasterState,
+)
+
+Triple = tuple[float, float, float]
+
+
+# ----------------------------------------------------------------------------- master side
+@dataclass(frozen=True, slots=True)
+class MasterPortState:
+    """Master side: last position and held force, incoming total, accounts."""
+
+    ledger: EnergyLedger
+    q_prev_m: float | None = None
+    force_prev_n: float = 0.0
+    rx: TotalReceiver = field(default_factory=TotalReceiver)
+
+
+def init_master(p: ControlParams) -> MasterPortState:
+    """A full tank (``initial_j``), no force held."""
+    return MasterPortState(ledger=EnergyLedger(initial_j=p.initial_j, tank_j=p.initial_j))
+
+
+def measure_master(s: MasterPortState, grip_position_m: float,
+                   dt_s: float) -> tuple[float, float, float]:
+    """(q, dq, v) of this sample; a non-finite reading counts as no motion."""
+    q_prev = s.q_prev_m
+    q = grip_position_m if math.isfinite(grip_position_m) else (q_prev or 0.0)
+    dq = 0.0 if q_prev is None else q - q_prev
+    v = dq / dt_s if dt_s > 0 else 0.0
+    return q, dq, v
+
+
+def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
+                command: ForceCommand | None, dt_s: float) -> tuple[MasterPortState,
+                                                                    MasterOutput]:
+    """One master-side sample of the passivity layer (see module docstring)."""
+    led = s.ledger
+    q, dq, v = measure_master(s, grip_position_m, dt_s)
+    w = port_work_j(s.force_prev_n, dq)
+    took, gave = split_work(w)
+    tank = led.tank_j - w
+    rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
+    tank, diss = cap_tank(tank + inc, p.max_j)
+    send = quantum_j(tank, p.reserve_j, p.transfer_fraction)
+    tank -= send
+    f_des = clip(command.force_n, p.force_max_n) if command is not None else 0.0
+    f_t = franken_limit(f_des, v, tank - p.min_j, dt_s)
+    d = tlc_damping(tank, p.desired_j, p.tlc_gain, p.tlc_damping_max, p.trigger_mass_kg, dt_s)
+    f_want = clip(f_t + d * v, p.force_max_n)
+    f = guard_force(f_want, tank, v, p.trigger_max_speed_m_s, dt_s)
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=tank, port_in_j=led.port_in_j + took,
+                       port_out_j=led.port_out_j + gave, sent_j=led.sent_j + send,
+                       received_j=led.received_j + inc, dissipated_j=led.dissipated_j + diss)
+    out = MasterOutput(force_n=f, grip_position_m=q, grip_velocity_m_s=v,
+                       energy_total_j=led.sent_j, ledger=led, force_desired_n=f_des,
+                       limited=(f_t != f_des) or (f != f_want), tlc_damping_n_s_per_m=d)
+    return MasterPortState(ledger=led, q_prev_m=q, force_prev_n=f, rx=rx), out
+
+
+# ------------------------------------------------------------------------------ controller
+@dataclass(frozen=True, slots=True)
+class ControllerStoreState:
+    """Controller: incoming totals, energy store, sent totals per link, force filter."""
+
+    ledger: EnergyLedger = field(default_factory=EnergyLedger)
+    rx_master: TotalReceiver = field(default_factory=TotalReceiver)
+    rx_hand: TotalReceiver = field(default_factory=TotalReceiver)
+    sent_to_master_j: float = 0.0
+    sent_to_hand_j: float = 0.0
+    transparency: TransparencyState = field(default_factory=TransparencyState)
+    seq: int = 0
+
+
+def init_controller(p: ControlParams) -> ControllerStoreState:
+    """An empty store: the controller never starts with energy of its own."""
+    return ControllerStoreState()
+
+
+def transparency_commands(s: ControllerStoreState, p: ControlParams,
+                          master: MasterState | None, hand: HandState | None,
+                          dt_s: float) -> tuple[TransparencyState, Triple, float, Triple, float]:
+    """(filter state, set-points, display force, max pressures, unfiltered force)."""
+    if master is not None:
+        sp = grip_to_setpoints(master.grip_position_m, p)
+    else:
+        sp = (p.open_angle_rad,) * 3
+    ts, force, mp, raw = transparency_force(s.transparency, p,
+                                            hand.fingers if hand is not None else None, dt_s)
+    return ts, sp, force, mp, raw
+
+
+def make_commands(p: ControlParams, seq: int, t_s: float, force_n: float, to_master_j: float,
+                  setpoints: Triple, to_hand_j: float) -> tuple[ForceCommand, HandCommand]:
+    """The two outgoing messages with their running energy totals."""
+    fc = ForceCommand(header=Header(seq=seq, t_s=t_s, energy_total_j=to_master_j),
+                      force_n=force_n)
+    hc = HandCommand(header=Header(seq=seq, t_s=t_s, energy_total_j=to_hand_j),
+                     finger_setpoint_rad=setpoints, preshape_rad=p.preshape_rad,
+                     mode=HandMode.POSITION)
+    return fc, hc
+
+
+def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterState | None,
+                    hand: HandState | None, t_s: float,
+                    dt_s: float) -> tuple[ControllerStoreState, ControllerOutput]:
+    """Credit incoming quanta, forward a share of the store, run the transparency layer."""
+    led = s.ledger
+    rx_m, inc_m = receive_total(s.rx_master, master.header.energy_total_j if master else None)
+    rx_h, inc_h = receive_total(s.rx_hand, hand.header.energy_total_j if hand else None)
+    # the store holds hand-side joules: master quanta are scaled up by rho on the way in and
+    # down on the way out (rho = 1: plain conservation)
+    rho = p.energy_scale
+    store, diss = cap_tank(led.tank_j + rho * inc_m + inc_h, p.max_j)
+    out = p.controller_fraction * max(store, 0.0)
+    to_h = p.controller_split * out
+    to_m = (out - to_h) / rho
+    store -= out
+    led = replace(led, tank_j=store, received_j=led.received_j + rho * inc_m + inc_h,
+                  sent_j=led.sent_j + out, dissipated_j=led.dissipated_j + diss)
+    ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s)
+    seq = s.seq + 1
+    sent_m, sent_h = s.sent_to_master_j + to_m, s.sent_to_hand_j + to_h
+    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h)
+    ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
+                              sent_to_hand_j=sent_h, transparency=ts, seq=seq)
+    return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=led,
+                                max_pressure=mp, force_desired_n=raw)
+
+
+# ------------------------------------------------------------------------------- hand side
+@dataclass(frozen=True, slots=True)
+class HandPortState:
+    """Hand side: last measured motor angles and set-points, incoming total, accounts."""
+
+    ledger: EnergyLedger
+    x_prev: Triple | None = None
+    setpoint_prev: Triple | None = None
+    rx: TotalReceiver = field(default_factory=TotalReceiver)
+
+
+def init_hand(p: ControlParams) -> HandPortState:
+    """A full tank; the first set-point is the measured position (no spring energy)."""
+    return HandPortState(ledger=EnergyLedger(initial_j=p.initial_j, tank_j=p.initial_j))
+
+
+def measure_hand(s: HandPortState, fingers: tuple[FingerState, ...]) -> Triple:
+    """Joint-side motor angles of the three fingers (non-finite -> previous value)."""
+    prev = s.x_prev or (0.0, 0.0, 0.0)
+    vals = [f.motor_angle_rad for f in fingers[:3]]
+    vals += [prev[i] for i in range(len(vals), 3)]
+    return tuple(v if math.isfinite(v) else prev[i]  # type: ignore[return-value]
+                 for i, v in enumerate(vals))
+
+
+def desired_setpoints(command: HandCommand | None, hold: Triple) -> Triple:
+    """The commanded set-points (position mode, finite) or ``hold``."""
+    if command is None or command.mode != HandMode.POSITION:
+        return hold
+    sp = tuple(command.finger_setpoint_rad[:3])
+    if len(sp) != 3 or not all(math.isfinite(v) for v in sp):
+        return hold
+    return sp  # type: ignore[return-value]
+
+
+def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
+              command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
+    """One hand-side sample: dissipation credit, quanta, set-position modulation."""
+    led = s.ledger
+    x = measure_hand(s, fingers)
+    y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
+    d_j = (dissipation_lower_bound_j(x, s.x_prev, p.servo_damping_nm_s_per_rad, dt_s)
+           if s.x_prev is not None else 0.0)
+    rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
+    tank, diss = cap_tank(led.tank_j + d_j + inc, p.max_j)
+    send = quantum_j(tank, p.reserve_j, p.transfer_fraction)
+    tank -= send
+    want = desired_setpoints(command, y_prev)
+    y, dp, limited = pspm_project(want, y_prev, x, tank - p.min_j,
+                                  p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm)
+    tank -= dp
+    e = dp - d_j
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=tank,
+                       port_in_j=led.port_in_j + max(-e, 0.0),
+                       port_out_j=led.port_out_j + max(e, 0.0), sent_j=led.sent_j + send,
+                       received_j=led.received_j + inc, dissipated_j=led.dissipated_j + diss)
+    pre = command.preshape_rad if command is not None else p.preshape_rad
+    out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
+                     setpoint_desired_rad=want, limited=limited,
+                     spring_energy_j=spring_energy_j(y, x, p.servo_stiffness_nm_per_rad,
+                                                     p.servo_torque_max_nm))
+    return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx), out

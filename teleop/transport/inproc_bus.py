@@ -1,0 +1,126 @@
+"""An in-process bus on a (usually virtual) clock: deterministic lockstep runs.
+
+All three services share one :class:`InProcessHub`; each gets a view with
+:meth:`InProcessHub.bus`.  ``publish`` encodes (so the codec is exercised exactly as over
+the network) and hands the bytes to the receiving view's delay line, stamped with the hub
+clock; ``receive`` releases what is due at the clock's current time.  With a
+:class:`~teleop.transport.clock.VirtualClock` the outcome depends only on the config seeds
+and the order of calls.
+
+Usage::
+
+    clock = VirtualClock()
+    hub = InProcessHub(cfg.links, clock, session=cfg.session.name)
+    master, ctrl = hub.bus("master"), hub.bus("controller")
+    master.publish("master_state", msg)
+    clock.advance(0.001)
+    for r in ctrl.receive("master_state"): ...
+"""
+
+from __future__ import annotations
+
+from teleop.config.schema import TeleopConfig
+from teleop.config.transport import LinksConfig
+from teleop.messages import Message
+from teleop.transport.bus import (
+    BusStats,
+    Inbox,
+    Received,
+    check_publish,
+    check_receive,
+    make_inboxes,
+)
+from teleop.transport.clock import Clock
+from teleop.transport.codec import encode
+from teleop.transport.keys import check_role, check_session, signal_spec
+from teleop.transport.safe_decoder import SafeDecoder
+
+
+class InProcessHub:
+    """The shared medium of an in-process run: one clock, the links, the live views."""
+
+    def __init__(self, links: LinksConfig, clock: Clock, session: str = "default",
+                 drop_stale: bool = True) -> None:
+        self.links = links
+        self.clock = clock
+        self.session = check_session(session)
+        self.drop_stale = drop_stale
+        self._views: dict[str, InProcessBus] = {}
+
+    @classmethod
+    def from_config(cls, cfg: TeleopConfig, clock: Clock) -> InProcessHub:
+        """A hub with ``cfg.links`` and ``cfg.session.name``."""
+        return cls(cfg.links, clock, cfg.session.name)
+
+    def bus(self, role: str) -> InProcessBus:
+        """The view of service ``role`` (one live view per role)."""
+        check_role(role)
+        if role in self._views:
+            raise ValueError(f"the in-process bus already has a live {role!r} view")
+        view = InProcessBus(self, role)
+        self._views[role] = view
+        return view
+
+    def next_release_s(self) -> float | None:
+        """Earliest release time of any message in flight (to skip idle virtual time)."""
+        times = [t for v in self._views.values() for t in v.next_release_times()]
+        return min(times) if times else None
+
+    def _deliver(self, signal: str, payload: bytes, t_s: float) -> None:
+        view = self._views.get(signal_spec(signal).receiver)
+        if view is not None:  # nobody listening: the message is gone, as on a network
+            view._inboxes[signal].arrive(payload, t_s)
+
+    def _is_alive(self, role: str) -> bool:
+        return role in self._views
+
+    def _drop(self, view: InProcessBus) -> None:
+        if self._views.get(view.role) is view:
+            del self._views[view.role]
+
+
+class InProcessBus:
+    """One service's view of an :class:`InProcessHub` (implements :class:`Bus`)."""
+
+    def __init__(self, hub: InProcessHub, role: str) -> None:
+        self.role = role
+        self._hub = hub
+        self._decoder = SafeDecoder(f"inproc:{role}")
+        self._inboxes: dict[str, Inbox] = make_inboxes(role, hub.links, self._decoder,
+                                                       hub.drop_stale)
+        self._closed = False
+
+    def publish(self, signal: str, msg: Message) -> None:
+        """Encode ``msg`` and put it on its link at the hub clock's time."""
+        check_publish(self.role, signal, msg)
+        if self._closed:
+            return
+        self._hub._deliver(signal, encode(msg), self._hub.clock.now_s())
+
+    def receive(self, signal: str) -> list[Received]:
+        """Messages on ``signal`` due at the hub clock's time."""
+        inbox = check_receive(self.role, self._inboxes, signal)
+        return inbox.release(self._hub.clock.now_s())
+
+    def alive(self, role: str) -> bool:
+        """Whether ``role`` has a live view on the hub."""
+        return self._hub._is_alive(check_role(role))
+
+    def stats(self) -> BusStats:
+        """Rejections and per-link counters."""
+        return BusStats(self.role, self._decoder.counts(),
+                        tuple(i.stats() for i in self._inboxes.values()))
+
+    def next_release_times(self) -> list[float]:
+        """Release times of the next message of every received signal in flight."""
+        return [t for i in self._inboxes.values() if (t := i.next_release_s()) is not None]
+
+    def inject(self, signal: str, payload: bytes) -> None:
+        """Put raw bytes on ``signal``'s link towards this view (tests: bad messages)."""
+        check_receive(self.role, self._inboxes, signal).arrive(payload, self._hub.clock.now_s())
+
+    def close(self) -> None:
+        """Leave the hub (peers see this role as not alive)."""
+        if not self._closed:
+            self._closed = True
+            self._hub._drop(self)

@@ -1,0 +1,264 @@
+"""The bus over zenoh (peer mode): one session per service process.
+
+* Endpoints: by default the controller listens on ``zenoh.endpoint`` and the master and hand
+  connect to it (the ``teleop up`` star); ``zenoh.listen``/``zenoh.connect`` add more, and
+  explicit ``listen=``/``connect=`` arguments replace both.  Multicast scouting is off
+  unless ``zenoh.multicast_scouting``.
+* Keys: ``teleop/<session>/<sender role>/<signal>`` (:mod:`teleop.transport.keys`).  Each
+  payload carries an attachment: the sender's monotonic send time (float64, seconds).
+* Delay lines run at the receiver.  With ``shared_clock`` (all processes on one machine, the
+  default) a message's delay counts from the sender's send time, so the configured delay is
+  the true one-way delay and the achieved delay measures it; otherwise it counts from the
+  arrival time on the receiver's clock (works across machines; the network adds to it).
+* Liveliness: a token ``teleop/<session>/<role>/alive`` per service; a subscriber (with
+  history) on the others' tokens answers :meth:`ZenohBus.alive`.  A killed peer's token
+  disappears as soon as its TCP link drops.  When a peer (re)appears, the sequence filter
+  of its signals is reset so a restarted sender is accepted.
+* ``close()`` undeclares subscribers, publishers and the token and closes the session; it
+  must be called (zenoh sessions keep the process alive otherwise).
+* GIL: zenoh delivers samples through a Python callback, which needs the GIL; a service
+  loop that spin-waits holds it for up to the interpreter's switch interval (5 ms by
+  default), which delays arrivals in bursts.  The constructor lowers the process's switch
+  interval to ``gil_switch_interval_s`` (100 us) unless that is None.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import struct
+import sys
+import threading
+from collections.abc import Mapping, Sequence
+
+import zenoh
+
+from teleop.config.schema import TeleopConfig
+from teleop.config.transport import LinksConfig, ZenohConfig
+from teleop.messages import Message
+from teleop.transport.bus import (
+    BusStats,
+    Inbox,
+    Received,
+    check_publish,
+    check_receive,
+    make_inboxes,
+)
+from teleop.transport.clock import Clock, MonotonicClock
+from teleop.transport.codec import encode
+from teleop.transport.keys import (
+    ROLES,
+    SIGNALS,
+    check_role,
+    check_session,
+    data_key,
+    liveliness_key,
+    liveliness_pattern,
+    role_from_key,
+)
+from teleop.transport.safe_decoder import SafeDecoder
+
+_STAMP = struct.Struct("<d")
+TX_QUEUE_BATCHES = 16
+
+
+def role_endpoints(role: str, zcfg: ZenohConfig) -> tuple[list[str], list[str]]:
+    """``(listen, connect)`` of ``role``: the controller listens on ``zcfg.endpoint``."""
+    listen, connect = list(zcfg.listen), list(zcfg.connect)
+    if zcfg.endpoint:
+        (listen if role == "controller" else connect).append(zcfg.endpoint)
+    return listen, connect
+
+
+def zenoh_config(mode: str, listen: Sequence[str], connect: Sequence[str],
+                 multicast_scouting: bool = False) -> zenoh.Config:
+    """A zenoh :class:`zenoh.Config` for one service."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", json.dumps(mode))
+    conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    conf.insert_json5("scouting/multicast/enabled", json.dumps(multicast_scouting))
+    # We publish express at REAL_TIME priority: one message per batch.  zenoh's default
+    # queue of 2 batches drops a message (CongestionControl.DROP, after 1 ms) as soon as its
+    # tx thread stalls for a couple of milliseconds; 16 batches ride out such stalls.
+    conf.insert_json5("transport/link/tx/queue/size/real_time", str(TX_QUEUE_BATCHES))
+    return conf
+
+
+class ZenohBus:
+    """One service's zenoh session (implements :class:`~teleop.transport.bus.Bus`)."""
+
+    def __init__(self, role: str, *, session: str = "default",
+                 links: LinksConfig | None = None, zenoh_cfg: ZenohConfig | None = None,
+                 clock: Clock | None = None, listen: Sequence[str] | None = None,
+                 connect: Sequence[str] | None = None, shared_clock: bool = True,
+                 drop_stale: bool = True, gil_switch_interval_s: float | None = 1e-4,
+                 extra_config: Mapping[str, str] | None = None) -> None:
+        self.role = check_role(role)
+        if gil_switch_interval_s is not None and sys.getswitchinterval() > gil_switch_interval_s:
+            sys.setswitchinterval(gil_switch_interval_s)
+        self.session_name = check_session(session)
+        zcfg = zenoh_cfg or ZenohConfig()
+        self._clock = clock or MonotonicClock()
+        self._shared_clock = shared_clock
+        d_listen, d_connect = role_endpoints(role, zcfg)
+        conf = zenoh_config(zcfg.mode, d_listen if listen is None else listen,
+                            d_connect if connect is None else connect, zcfg.multicast_scouting)
+        for key, value in (extra_config or {}).items():  # zenoh key -> JSON5 (secure mode)
+            conf.insert_json5(key, value)
+        self._decoder = SafeDecoder(f"zenoh:{role}")
+        self._inboxes: dict[str, Inbox] = make_inboxes(role, links or LinksConfig(),
+                                                       self._decoder, drop_stale)
+        self._arrivals: dict[str, collections.deque[tuple[bytes, float]]] = {
+            s: collections.deque() for s in self._inboxes}
+        self._data_event = threading.Event()
+        self._alive: set[str] = set()
+        self._reset_from: set[str] = set()
+        self._closed = False
+        self._session = zenoh.open(conf)
+        try:
+            self._publishers = {
+                name: self._session.declare_publisher(
+                    data_key(session, name), congestion_control=zenoh.CongestionControl.DROP,
+                    priority=zenoh.Priority.REAL_TIME, express=True)
+                for name, spec in SIGNALS.items() if spec.sender == role}
+            self._subscribers = [
+                self._session.declare_subscriber(data_key(session, name), self._on_data(name))
+                for name in self._inboxes]
+            self._token = (self._session.liveliness().declare_token(liveliness_key(session, role))
+                           if zcfg.liveliness else None)
+            self._live_sub = self._session.liveliness().declare_subscriber(
+                liveliness_pattern(session), self._on_liveliness, history=True)
+        except BaseException:
+            self._session.close()
+            raise
+
+    @classmethod
+    def from_config(cls, role: str, cfg: TeleopConfig, **kwargs: object) -> ZenohBus:
+        """A bus for ``role`` from the ``session``, ``zenoh`` and ``links`` sections."""
+        kwargs.setdefault("shared_clock", cfg.zenoh.shared_clock)
+        if "extra_config" not in kwargs:  # TLS, auth and ACL when security.enabled
+            from teleop.security.zenoh_secure import secure_zenoh_config
+
+            kwargs["extra_config"] = secure_zenoh_config(cfg, role)
+        return cls(role, session=cfg.session.name, links=cfg.links, zenoh_cfg=cfg.zenoh,
+                   **kwargs)  # type: ignore[arg-type]
+
+    # -- zenoh callbacks (zenoh threads): only append / set operations ------------------
+    def _on_data(self, signal: str):  # noqa: ANN202 - a zenoh callback
+        queue = self._arrivals[signal]
+        clock = self._clock
+
+        def callback(sample: zenoh.Sample) -> None:
+            now = clock.now_s()
+            sent = now
+            att = sample.attachment
+            if att is not None:
+                raw = att.to_bytes()
+                if len(raw) == _STAMP.size:
+                    sent = _STAMP.unpack(raw)[0]
+            queue.append((sample.payload.to_bytes(), sent if self._shared_clock else now))
+            self._data_event.set()
+
+        return callback
+
+    def _on_liveliness(self, sample: zenoh.Sample) -> None:
+        role = role_from_key(str(sample.key_expr))
+        if role is None:
+            return
+        if sample.kind == zenoh.SampleKind.PUT:
+            self._alive.add(role)
+            self._reset_from.add(role)
+        else:
+            self._alive.discard(role)
+
+    # -- Bus ---------------------------------------------------------------------------
+    def publish(self, signal: str, msg: Message) -> None:
+        """Encode and put ``msg`` with the send time attached (never blocks: drops)."""
+        check_publish(self.role, signal, msg)
+        if self._closed:
+            return
+        self._publishers[signal].put(encode(msg), attachment=_STAMP.pack(self._clock.now_s()))
+
+    def receive(self, signal: str) -> list[Received]:
+        """Move arrivals into the delay line and release what is due now."""
+        inbox = check_receive(self.role, self._inboxes, signal)
+        if self._reset_from:
+            for role in list(self._reset_from):
+                self._reset_from.discard(role)
+                for i in self._inboxes.values():
+                    if i.spec.sender == role:
+                        i.reset_seq()
+        queue = self._arrivals[signal]
+        while queue:
+            payload, t_s = queue.popleft()
+            inbox.arrive(payload, t_s)
+        return inbox.release(self._clock.now_s())
+
+    def alive(self, role: str) -> bool:
+        """Our own role while open; a peer while its liveliness token is present."""
+        check_role(role)
+        if role == self.role:
+            return not self._closed
+        return role in self._alive
+
+    def peers_alive(self) -> dict[str, bool]:
+        """``alive`` of every role."""
+        return {r: self.alive(r) for r in ROLES}
+
+    def stats(self) -> BusStats:
+        """Rejections and per-link counters."""
+        return BusStats(self.role, self._decoder.counts(),
+                        tuple(i.stats() for i in self._inboxes.values()))
+
+    def wait_for_data(self, timeout_s: float) -> bool:
+        """Block until something arrives (or ``timeout_s``); True if something did."""
+        got = self._data_event.wait(timeout_s)
+        self._data_event.clear()
+        return got
+
+    def wait(self, timeout_s: float, spin_s: float = 150e-6) -> bool:
+        """Block until data arrives, a delayed message falls due, or ``timeout_s`` passes.
+
+        Sleeps on an event and spins the last ``spin_s`` before a release, so a loop of
+        ``wait`` + ``receive`` delivers delayed messages within a few microseconds of their
+        release time.  Returns True if new data arrived.
+        """
+        now = self._clock.now_s()
+        deadline = now + timeout_s
+        nxt = self.next_release_s()
+        due = nxt is not None and nxt < deadline
+        if due:
+            deadline = nxt  # type: ignore[assignment]
+        if deadline - now > spin_s and self.wait_for_data(deadline - now - (spin_s if due else 0)):
+            return True
+        while due and self._clock.now_s() < deadline:
+            if self._data_event.is_set():
+                self._data_event.clear()
+                return True
+        return False
+
+    def next_release_s(self) -> float | None:
+        """Earliest release time among messages already in the delay lines."""
+        times = [t for i in self._inboxes.values() if (t := i.next_release_s()) is not None]
+        return min(times) if times else None
+
+    def close(self) -> None:
+        """Undeclare everything and close the session (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        for sub in self._subscribers:
+            sub.undeclare()
+        self._live_sub.undeclare()
+        for pub in self._publishers.values():
+            pub.undeclare()
+        if self._token is not None:
+            self._token.undeclare()
+        self._session.close()
+
+    def __enter__(self) -> ZenohBus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

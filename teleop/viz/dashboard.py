@@ -1,0 +1,199 @@
+"""The live rerun dashboard: entity paths, blueprint, and log functions per service.
+
+Every function takes an explicit :class:`rerun.RecordingStream`; nothing global.  The three
+services log into one recording (same application and recording id) under::
+
+    master/trigger_position_m        master/displayed_force_n     master/tank_j
+    master/port_in_j, port_out_j     controller/setpoint_rad/f{1,2,3}
+    controller/commanded_force_n     controller/energy_stored_j   hand/finger{1,2,3}/proximal_rad
+    hand/finger{1,2,3}/distal_rad    hand/tank_j                  hand/port_in_j, port_out_j
+    links/<link>/delay_s             hand/pressure (27 bars)      hand/drawing/*
+    events (text log: passivity limiting, watchdogs, dropped messages)
+
+Time is the ``time`` timeline (a duration: seconds since the session's epoch).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import rerun as rr
+import rerun.blueprint as rrb
+
+from teleop.devices.base import HandReading
+
+APPLICATION_ID = "teleop"
+TIMELINE = "time"
+
+LINKS: tuple[str, ...] = ("master_to_controller", "controller_to_master",
+                          "controller_to_hand", "hand_to_controller")
+
+#: every path the dashboard shows data at (the end-to-end test checks each one holds data)
+DASHBOARD_PATHS: tuple[str, ...] = (
+    "master/trigger_position_m", "master/displayed_force_n", "master/tank_j",
+    "master/port_in_j", "master/port_out_j",
+    *(f"controller/setpoint_rad/f{i}" for i in (1, 2, 3)),
+    "controller/commanded_force_n", "controller/energy_stored_j",
+    *(f"hand/finger{i}/{j}" for i in (1, 2, 3) for j in ("proximal_rad", "distal_rad")),
+    "hand/tank_j", "hand/port_in_j", "hand/port_out_j",
+    *(f"links/{link}/delay_s" for link in LINKS),
+    "hand/pressure", "hand/drawing/links", "hand/drawing/tendon", "hand/drawing/sensors",
+    "events",
+)
+
+# ReFlex finger geometry for drawing (m): proximal axle -> distal joint, distal link length,
+# tactile sensor positions along each link (reference/reflex-hardware.md)
+_PROXIMAL_M = 0.072
+_DISTAL_M = 0.045
+_PROX_SENSORS_M = (0.0189, 0.0268, 0.0347, 0.0427, 0.0506)
+_DIST_SENSORS_M = (0.0114, 0.0193, 0.0272, 0.0375)
+_FINGER_SPACING_M = 0.14
+_TENDON_OFFSET_M = 0.006
+
+
+def blueprint() -> rrb.Blueprint:
+    """The dashboard layout."""
+    fingers = [f"+ hand/finger{i}/**" for i in (1, 2, 3)]
+    return rrb.Blueprint(
+        rrb.Grid(
+            rrb.TimeSeriesView(name="trigger position vs finger angles",
+                               contents=["+ master/trigger_position_m", *fingers,
+                                         "+ controller/setpoint_rad/**"]),
+            rrb.TimeSeriesView(name="commanded vs displayed force",
+                               contents=["+ controller/commanded_force_n",
+                                         "+ master/displayed_force_n"]),
+            rrb.TimeSeriesView(name="tanks and energy flows",
+                               contents=["+ master/tank_j", "+ hand/tank_j",
+                                         "+ master/port_in_j", "+ master/port_out_j",
+                                         "+ hand/port_in_j", "+ hand/port_out_j",
+                                         "+ controller/energy_stored_j"]),
+            rrb.TimeSeriesView(name="achieved delay per link", origin="links"),
+            rrb.BarChartView(name="pressure sensors (27)", origin="hand/pressure"),
+            rrb.Spatial2DView(name="fingers", origin="hand/drawing"),
+            rrb.TextLogView(name="events", origin="events"),
+        ),
+        collapse_panels=True,
+    )
+
+
+def open_stream(recording_id: str, mode: str, path: str | Path | None = None,
+                url: str | None = None, send_blueprint: bool = True) -> rr.RecordingStream | None:
+    """A recording stream for one process: ``save`` to ``path``, ``connect`` to a viewer at
+    ``url``, ``spawn`` a viewer, serve a ``web`` viewer, or ``off`` (None)."""
+    if mode == "off":
+        return None
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
+    bp = blueprint() if send_blueprint else None
+    if mode == "save":
+        if path is None:
+            raise ValueError("save mode needs a path")
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        rec.save(str(path), default_blueprint=bp)
+    elif mode == "connect":
+        rec.connect_grpc(url, default_blueprint=bp)
+    elif mode == "spawn":
+        rec.spawn(default_blueprint=bp)
+    elif mode == "web":
+        uri = rec.serve_grpc(default_blueprint=bp)
+        rr.serve_web_viewer(connect_to=uri, open_browser=False)
+    else:
+        raise ValueError(f"unknown dashboard mode {mode!r}")
+    return rec
+
+
+def set_time(rec: rr.RecordingStream, t_s: float) -> None:
+    """Set the ``time`` timeline (seconds since the session epoch)."""
+    rec.set_time(TIMELINE, duration=t_s)
+
+
+def _scalar(rec: rr.RecordingStream, path: str, value: float) -> None:
+    if math.isfinite(value):
+        rec.log(path, rr.Scalars(value))
+
+
+def log_master(rec: rr.RecordingStream, t_s: float, *, trigger_position_m: float,
+               displayed_force_n: float, tank_j: float, port_in_j: float, port_out_j: float,
+               delay_s: float | None) -> None:
+    """The master's signals; ``port_in_j``/``port_out_j`` are the cumulative energy taken
+    from / delivered to the operator; ``delay_s`` is the achieved controller->master delay."""
+    set_time(rec, t_s)
+    _scalar(rec, "master/trigger_position_m", trigger_position_m)
+    _scalar(rec, "master/displayed_force_n", displayed_force_n)
+    _scalar(rec, "master/tank_j", tank_j)
+    _scalar(rec, "master/port_in_j", port_in_j)
+    _scalar(rec, "master/port_out_j", port_out_j)
+    if delay_s is not None:
+        _scalar(rec, "links/controller_to_master/delay_s", delay_s)
+
+
+def log_controller(rec: rr.RecordingStream, t_s: float, *, setpoints_rad: Sequence[float],
+                   commanded_force_n: float, energy_stored_j: float,
+                   master_delay_s: float | None, hand_delay_s: float | None) -> None:
+    """The controller's signals and the achieved delays of the links into it."""
+    set_time(rec, t_s)
+    for i, sp in enumerate(setpoints_rad, start=1):
+        _scalar(rec, f"controller/setpoint_rad/f{i}", sp)
+    _scalar(rec, "controller/commanded_force_n", commanded_force_n)
+    _scalar(rec, "controller/energy_stored_j", energy_stored_j)
+    if master_delay_s is not None:
+        _scalar(rec, "links/master_to_controller/delay_s", master_delay_s)
+    if hand_delay_s is not None:
+        _scalar(rec, "links/hand_to_controller/delay_s", hand_delay_s)
+
+
+def finger_drawing(proximal_rad: float, distal_rad: float, index: int
+                   ) -> tuple[list[tuple[float, float]], list[tuple[float, float]],
+                              list[tuple[float, float]]]:
+    """Planar drawing of one finger: link polyline, tendon polyline, sensor points.
+
+    The finger lies along +x when open and curls towards -y as the joints flex.
+    """
+    ox = index * _FINGER_SPACING_M
+    a1, a2 = -proximal_rad, -(proximal_rad + distal_rad)
+    c1, s1, c2, s2 = math.cos(a1), math.sin(a1), math.cos(a2), math.sin(a2)
+    j = (ox + _PROXIMAL_M * c1, _PROXIMAL_M * s1)
+    tip = (j[0] + _DISTAL_M * c2, j[1] + _DISTAL_M * s2)
+    links = [(ox, 0.0), j, tip]
+    # tendon runs on the palm (inner, -y rotated) side of each link
+    n1 = (s1 * _TENDON_OFFSET_M, -c1 * _TENDON_OFFSET_M)
+    n2 = (s2 * _TENDON_OFFSET_M, -c2 * _TENDON_OFFSET_M)
+    tendon = [(ox + n1[0], n1[1]), (j[0] + n1[0], j[1] + n1[1]),
+              (j[0] + n2[0], j[1] + n2[1]), (tip[0] + n2[0], tip[1] + n2[1])]
+    sensors = [(ox + d * c1 + n1[0], d * s1 + n1[1]) for d in _PROX_SENSORS_M]
+    sensors += [(j[0] + d * c2 + n2[0], j[1] + d * s2 + n2[1]) for d in _DIST_SENSORS_M]
+    return links, tendon, sensors
+
+
+def log_hand(rec: rr.RecordingStream, t_s: float, reading: HandReading, *, tank_j: float,
+             port_in_j: float, port_out_j: float, delay_s: float | None) -> None:
+    """The hand's state, pressures, drawing and energy; ``delay_s`` is controller->hand."""
+    set_time(rec, t_s)
+    links, tendons, points, colors = [], [], [], []
+    pressures: list[float] = []
+    for i, f in enumerate(reading.fingers):
+        _scalar(rec, f"hand/finger{i + 1}/proximal_rad", f.proximal_rad)
+        _scalar(rec, f"hand/finger{i + 1}/distal_rad", f.distal_rad)
+        lk, td, ss = finger_drawing(f.proximal_rad, f.distal_rad, i)
+        links.append(lk)
+        tendons.append(td)
+        points += ss
+        colors += [(230, 40, 40) if c else (150, 150, 150) for c in f.contact]
+        pressures += [float(p) for p in f.pressure]
+    rec.log("hand/pressure", rr.BarChart(pressures))
+    rec.log("hand/drawing/links", rr.LineStrips2D(links, colors=(200, 200, 200), radii=0.004))
+    rec.log("hand/drawing/tendon", rr.LineStrips2D(tendons, colors=(60, 120, 220), radii=0.001))
+    rec.log("hand/drawing/sensors", rr.Points2D(points, colors=colors, radii=0.003))
+    _scalar(rec, "hand/tank_j", tank_j)
+    _scalar(rec, "hand/port_in_j", port_in_j)
+    _scalar(rec, "hand/port_out_j", port_out_j)
+    if delay_s is not None:
+        _scalar(rec, "links/controller_to_hand/delay_s", delay_s)
+
+
+def log_event(rec: rr.RecordingStream, t_s: float, role: str, text: str,
+              level: str = "INFO") -> None:
+    """One line in the event log (passivity limiting, watchdog, dropped messages)."""
+    set_time(rec, t_s)
+    rec.log("events", rr.TextLog(f"[{role}] {text}", level=level))

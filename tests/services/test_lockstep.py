@@ -1,0 +1,87 @@
+"""The three service shells in lockstep on the in-process bus (fake hand, virtual operator)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from _svc_fakes import FakeHand
+
+from services.lockstep import LockstepResult, run_lockstep
+from teleop.config import load_config
+
+CONTACT_RAD = 1.2
+
+
+def run(overrides: list[str] | None = None, duration_s: float = 4.0, seed: int = 3
+        ) -> LockstepResult:
+    cfg = load_config(None, ["master.virtual.repeat=false", *(overrides or [])])
+    return run_lockstep(cfg, duration_s, seed=seed, hand=FakeHand(contact_rad=CONTACT_RAD))
+
+
+@pytest.fixture(scope="module")
+def base() -> LockstepResult:
+    return run()
+
+
+def test_one_row_per_master_tick(base: LockstepResult) -> None:
+    assert base.t_s.size == 4001
+    assert np.allclose(np.diff(base.t_s), 1e-3)
+    assert base.proximal_rad.shape == (4001, 3) and base.pressure.shape == (4001, 27)
+
+
+def test_fingers_close_on_the_object_when_the_trigger_closes(base: LockstepResult) -> None:
+    hold = (base.t_s > 2.0) & (base.t_s < 3.4)  # script: close 0.5-1.5 s, hold to 3.5 s
+    assert base.trigger_position_m[base.t_s < 0.5].max() == 0.0
+    assert base.trigger_position_m[hold].min() > 0.015
+    # the fingers reach the object and stop there
+    assert np.all(np.abs(base.proximal_rad[hold] - CONTACT_RAD) < 0.02)
+    assert base.pressure[hold].max() > 20.0
+
+
+def test_operator_feels_the_grasp(base: LockstepResult) -> None:
+    hold = (base.t_s > 2.0) & (base.t_s < 3.4)
+    free = base.t_s < 0.5
+    assert np.all(base.displayed_force_n[hold] > 0.5)
+    assert np.all(np.abs(base.displayed_force_n[free]) < 1e-6)
+    # the virtual operator's finger yields under the displayed force: trigger short of 25 mm
+    assert base.trigger_position_m[hold].max() < 0.025
+
+
+def test_energy_balance_holds_at_every_sample(base: LockstepResult) -> None:
+    assert base.initial_j > 0
+    assert np.all(base.energy_margin_j >= -1e-9)
+    assert base.energy_generated_j == 0.0
+    assert np.all(base.received_j <= base.sent_j + 1e-12)  # the links never create energy
+    for tank in (base.master_tank_j, base.hand_tank_j, base.controller_store_j):
+        assert np.nanmin(tank) >= -1e-12
+
+
+def test_same_seed_same_run_and_different_seed_differs() -> None:
+    over = ["links.master_controller.jitter=uniform", "links.master_controller.jitter_s=0.01",
+            "links.master_controller.loss=0.2"]
+    a, b, c = run(over, 1.5, seed=1), run(over, 1.5, seed=1), run(over, 1.5, seed=2)
+    assert np.array_equal(a.displayed_force_n, b.displayed_force_n)
+    assert np.array_equal(a.delay_master_to_controller_s, b.delay_master_to_controller_s,
+                          equal_nan=True)
+    assert not np.array_equal(a.delay_master_to_controller_s, c.delay_master_to_controller_s,
+                              equal_nan=True)
+
+
+def test_achieved_delays_and_drops_follow_the_links() -> None:
+    r = run(["links.master_controller.delay_s=0.05", "links.controller_hand.delay_s=0.02",
+             "links.controller_hand.loss=0.3"], 1.0)
+    assert np.nanmedian(r.delay_master_to_controller_s) == pytest.approx(0.05, abs=1e-9)
+    assert np.nanmedian(r.delay_controller_to_master_s) == pytest.approx(0.05, abs=1e-9)
+    assert np.nanmedian(r.delay_hand_to_controller_s) == pytest.approx(0.02, abs=1e-9)
+    # the hand reads ~25 commands per tick; its latest command is 20 ms old
+    assert np.nanmedian(r.delay_controller_to_hand_s) == pytest.approx(0.02, abs=1e-9)
+    assert r.dropped_hand_command[-1] > 0 and r.dropped_master_state[-1] == 0
+    assert 0.2 < r.dropped_hand_command[-1] / 1000 < 0.4
+
+
+def test_runs_faster_than_real_time() -> None:
+    import time
+
+    t0 = time.perf_counter()
+    run(duration_s=2.0)
+    assert time.perf_counter() - t0 < 2.0

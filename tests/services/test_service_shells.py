@@ -1,0 +1,107 @@
+"""Service shells one at a time on the in-process bus: watchdogs, safe states, resume."""
+
+from __future__ import annotations
+
+import numpy as np
+from _svc_fakes import FakeHand
+
+from services.hand_service import HandService
+from services.master_service import MasterService
+from services.samples import sample_columns, sample_row
+from teleop.config import load_config
+from teleop.devices.base import MasterReading
+from teleop.messages import ForceCommand, HandCommand, Header
+from teleop.transport.clock import VirtualClock
+from teleop.transport.inproc_bus import InProcessHub
+
+
+class StillTrigger:
+    """A master device held still at ``x_m``; records the forces displayed."""
+
+    def __init__(self, x_m: float = 0.01) -> None:
+        self.x_m = x_m
+        self.forces: list[float] = []
+
+    def start(self) -> None: ...
+
+    def read(self, t_s: float) -> MasterReading:
+        return MasterReading(t_s=t_s, grip_position_m=self.x_m, grip_velocity_m_s=0.0)
+
+    def apply_force(self, force_n: float) -> None:
+        self.forces.append(force_n)
+
+    def close(self) -> None: ...
+
+
+def hand_command(seq: int, t: float, sp: float, total_j: float) -> HandCommand:
+    return HandCommand(header=Header(seq=seq, t_s=t, energy_total_j=total_j),
+                       finger_setpoint_rad=(sp, sp, sp), preshape_rad=0.0)
+
+
+def test_hand_holds_without_commands_then_resumes_without_a_jump() -> None:
+    cfg = load_config(None, [])
+    clock = VirtualClock()
+    hub = InProcessHub.from_config(cfg, clock)
+    hand = FakeHand(contact_rad=3.0)
+    svc = HandService(cfg, hub.bus("hand"), hand)
+    dt = svc.dt_s
+    for k in range(10):  # no controller at all: the hand holds where it is
+        clock.set(k * dt)
+        s = svc.tick(k * dt)
+        assert s.watchdog == 1.0
+    assert all(c.finger_setpoint_rad == (0.0, 0.0, 0.0) for c in hand.applied)
+    ctrl = hub.bus("controller")
+    sps, events = [], []
+    for k in range(10, 40):  # the controller appears and asks for 1 rad
+        for j in range(25):
+            ctrl.publish("hand_command", hand_command(k * 25 + j, k * dt, 1.0, 0.05 * k))
+        clock.set(k * dt)
+        s = svc.tick(k * dt)
+        sps.append(s.setpoint_rad[0])
+        events += svc.events
+    steps = np.diff([0.0, *sps])
+    assert sps[-1] > 0.9  # it gets there ...
+    assert steps.max() <= 1.0 * dt / cfg.safety.force_ramp_s + 1e-9  # ... along the ramp
+    assert any("blending in" in e for e in events)
+    held = hand.angle[0]
+    ctrl.close()  # the controller's liveliness goes: hold at once
+    for k in range(40, 45):
+        clock.set(k * dt)
+        s = svc.tick(k * dt)
+        assert s.watchdog == 1.0
+    assert abs(hand.applied[-1].finger_setpoint_rad[0] - held) < 0.1
+    svc.close()
+    assert hand.safe_calls == ["hold"] and hand.closed
+
+
+def test_master_force_ramps_in_and_out_with_the_force_commands() -> None:
+    cfg = load_config(None, [])
+    clock = VirtualClock()
+    hub = InProcessHub.from_config(cfg, clock)
+    dev = StillTrigger()
+    svc = MasterService(cfg, hub.bus("master"), dev)
+    ctrl = hub.bus("controller")
+    dt = svc.dt_s
+    desired = []
+    for k in range(700):
+        if k < 400:
+            ctrl.publish("force_command", ForceCommand(
+                header=Header(seq=k + 1, t_s=k * dt, energy_total_j=0.0), force_n=2.0))
+        clock.set(k * dt)
+        desired.append(svc.tick(k * dt).force_desired_n)
+    d = np.array(desired)
+    ramp = 2.0 * dt / cfg.safety.force_ramp_s
+    assert np.abs(np.diff(d)).max() <= ramp + 1e-9  # never a jump, in or out
+    assert d[300] == 2.0  # fully in while commands flow
+    assert d[-1] == 0.0  # ramped out after the commands stopped
+    assert svc.wd.trips == 1
+
+
+def test_sample_columns_match_rows() -> None:
+    cfg = load_config(None, [])
+    hub = InProcessHub.from_config(cfg, VirtualClock())
+    svc = HandService(cfg, hub.bus("hand"), FakeHand())
+    s = svc.tick(0.0)
+    cols = sample_columns(s)
+    assert cols[0] == "t_s" and len(cols) == len(sample_row(s))
+    assert "pressure_f3_8" in cols and "proximal_angle_rad_f2" in cols

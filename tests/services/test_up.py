@@ -1,0 +1,140 @@
+"""`teleop up` end to end over real zenoh on loopback, and the CLI's one-line errors."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from teleop.commands.up import resolve_dashboard
+from teleop.errors import UserInputError
+from teleop.recording import Recording, read_recording
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def teleop(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "teleop.cli", *args], capture_output=True,
+                          text=True, timeout=timeout)
+
+
+def initial_j(rec: Recording, store: str = "tank_j") -> float:
+    """From the ledger identity tank = initial + in + received - out - sent - dissipated."""
+    c = rec.column
+    port_in = c("port_in_j") if rec.has("port_in_j") else 0.0
+    port_out = c("port_out_j") if rec.has("port_out_j") else 0.0
+    init = (c(store) - port_in - c("received_j") + port_out + c("sent_j") + c("dissipated_j"))
+    assert np.ptp(init) < 1e-6  # the accounts balance at every sample
+    return float(init[0])
+
+
+@pytest.fixture(scope="module")
+def up_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.CompletedProcess[str],
+                                                            Path, Path, float]:
+    tmp = tmp_path_factory.mktemp("up")
+    rrd, rec = tmp / "dash.rrd", tmp / "rec"
+    port = free_port()
+    t0 = time.monotonic()
+    proc = teleop("up", "--duration", "5", "--dashboard", f"save:{rrd}", "--record", str(rec),
+                  "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}",
+                  "--set", f"session.name=uptest{port}")
+    return proc, rrd, rec, time.monotonic() - t0
+
+
+@pytest.mark.network
+@pytest.mark.slow
+def test_up_exits_cleanly(up_run: tuple[subprocess.CompletedProcess[str], Path, Path, float]
+                          ) -> None:
+    proc, _, _, _ = up_run
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "ready (" in proc.stdout and "[3/3]" in proc.stdout
+    assert "did not stop" not in proc.stdout
+    assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.network
+@pytest.mark.slow
+def test_rrd_holds_one_recording_with_data_at_every_dashboard_path(
+        up_run: tuple[subprocess.CompletedProcess[str], Path, Path, float]) -> None:
+    from rerun.chunk import RrdReader
+
+    from teleop.viz.dashboard import DASHBOARD_PATHS
+
+    _, rrd, _, _ = up_run
+    reader = RrdReader(rrd)
+    assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1
+    found = {ch.entity_path.lstrip("/") for ch in reader.stream()
+             if not ch.is_static and ch.num_rows > 0}
+    missing = [p for p in DASHBOARD_PATHS if p not in found]
+    assert not missing, f"no data at {missing}"
+    assert not rrd.with_name(rrd.name + ".parts").exists()  # parts merged and removed
+
+
+@pytest.mark.network
+@pytest.mark.slow
+def test_recordings_show_the_grasp_and_the_energy_balance(
+        up_run: tuple[subprocess.CompletedProcess[str], Path, Path, float]) -> None:
+    _, _, rec_dir, _ = up_run
+    m = read_recording(rec_dir / "master.csv")
+    c = read_recording(rec_dir / "controller.csv")
+    h = read_recording(rec_dir / "hand.csv")
+    assert len(m) > 4500 and len(c) > 4500 and len(h) > 150  # 1 kHz, 1 kHz, 40 Hz for ~5 s
+    # the virtual operator closes the trigger (script: 0.5 s pause, 1 s close, 2 s hold)
+    x = m.column("trigger_position_m")
+    assert x[m.t_s < m.t_s[0] + 0.4].max() == 0.0 and x.max() > 0.02
+    closed_t = m.t_s[x > 0.8 * x.max()]
+    t_close, t_end = closed_t[0], closed_t[-1]
+    # ... and the fingers close on the object: they flex and the tactile sensors load up
+    hold = (h.t_s > t_close) & (h.t_s < t_end)
+    start = h.t_s < m.t_s[0] + 0.5  # before the operator starts closing
+    flex = h.column("proximal_angle_rad_f1") + h.column("distal_angle_rad_f1")
+    assert flex[hold].mean() > flex[start].mean() + 0.2
+    pressure = np.max([h.column(f"pressure_f1_{j}") for j in range(9)], axis=0)
+    assert pressure[hold].max() > 20.0 and pressure[start].max() < 20.0
+    # the operator feels it: force displayed while closed on the object, none before
+    f = m.column("displayed_force_n")
+    held = (m.t_s > t_close + 0.5) & (m.t_s < t_end)
+    assert np.median(f[held]) > 0.5
+    assert np.abs(f[m.t_s < m.t_s[0] + 0.4]).max() < 0.2
+    # energy: no tank negative; delivered at the ports <= initial + taken from the ports
+    for r, store in ((m, "tank_j"), (h, "tank_j"), (c, "store_j")):
+        assert r.column(store).min() >= -1e-9
+    init = initial_j(m) + initial_j(h) + initial_j(c, "store_j")
+    delivered = m.column("port_out_j")[-1] + h.column("port_out_j")[-1]
+    taken = m.column("port_in_j")[-1] + h.column("port_in_j")[-1]
+    assert delivered <= init + taken + 1e-6
+    sent = m.column("sent_j")[-1] + c.column("sent_j")[-1] + h.column("sent_j")[-1]
+    received = m.column("received_j")[-1] + c.column("received_j")[-1] + \
+        h.column("received_j")[-1]
+    assert received <= sent + 1e-6  # the links never create energy
+
+
+def test_dashboard_mode_resolution() -> None:
+    assert resolve_dashboard(None, "auto", "t.rrd", {"DISPLAY": ":0"}) == ("spawn", None)
+    assert resolve_dashboard(None, "auto", "t.rrd", {"WAYLAND_DISPLAY": "w"}) == ("spawn", None)
+    assert resolve_dashboard(None, "auto", "t.rrd", {}) == ("save", "t.rrd")
+    assert resolve_dashboard("save:x/y.rrd", "auto", "t.rrd", {}) == ("save", "x/y.rrd")
+    assert resolve_dashboard("off", "spawn", "t.rrd", {}) == ("off", None)
+    with pytest.raises(UserInputError):
+        resolve_dashboard("bogus", "auto", "t.rrd", {})
+
+
+@pytest.mark.parametrize("args", [
+    ("up", "--dashboard", "nonsense", "--duration", "1"),
+    ("run", "master", "--set", "master.backend=nope"),
+    ("up", "--config", "/nonexistent/x.toml"),
+])
+def test_user_mistakes_are_one_line_and_exit_2(args: tuple[str, ...]) -> None:
+    proc = teleop(*args, timeout=60)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1

@@ -1,0 +1,230 @@
+"""A closed loop for controller tests: operator + trigger, impaired links, controller, a
+first-order finger servo against a spring wall.  Exact energy bookkeeping of the physics.
+
+Physics (test side, independent of the controllers' own accounting):
+* operator: mass-spring-damper finger on the trigger following a reference, plus random
+  forcing; speed kept within the trigger's speed bound; hard stops at 0 and ``travel``;
+  the device force is held over each 1 ms step, so its work is exactly ``-F dx``.
+* finger i: massless first-order servo ``B xdot = sat(K (y - x)) - k_e max(0, x - wall)``
+  (torque saturating at ``tau_max``) integrated by implicit Euler (a minimizing movement of a
+  convex energy: it can only dissipate), so the physical storage
+  ``S = sum P_servo(y - x) + k_e/2 pen^2`` changes only by set-point jumps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from teleop.control.energy_channel import EnergyLedger
+from teleop.control.interface import ControllerSuite, ControlParams
+from teleop.control.passivity_layer import servo_potential_j
+from teleop.messages import FingerState, HandState, Header
+
+DT = 1e-3
+
+
+@dataclass
+class Link:
+    """Per-message delay (steps), loss, duplication; reordering if delays differ."""
+
+    rng: np.random.Generator
+    delay_steps: int = 0
+    jitter_steps: int = 0
+    loss: float = 0.0
+    dup: float = 0.0
+    fifo: bool = False
+    queue: list[tuple[int, int, object]] = field(default_factory=list)
+    count: int = 0
+    last_due: int = 0
+
+    def send(self, k: int, msg: object) -> None:
+        copies = 0 if self.rng.random() < self.loss else 1
+        if copies and self.rng.random() < self.dup:
+            copies = 2
+        for _ in range(copies):
+            due = k + self.delay_steps + int(self.rng.integers(0, self.jitter_steps + 1))
+            if self.fifo:
+                due = max(due, self.last_due)
+                self.last_due = due
+            self.count += 1
+            self.queue.append((due, self.count, msg))
+
+    def deliver(self, k: int) -> object | None:
+        """The last message arriving at step ``k`` (latest-wins), or None."""
+        ready = sorted((d, c, m) for d, c, m in self.queue if d <= k)
+        if not ready:
+            return None
+        self.queue = [e for e in self.queue if e[0] > k]
+        return ready[-1][2]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything random about one closed-loop run."""
+
+    seed: int = 0
+    steps: int = 1500
+    delay_steps: int = 0  # one way, each of the 4 link directions
+    jitter_steps: int = 0
+    loss: float = 0.0
+    dup: float = 0.0
+    hand_every: int = 1  # hand sample period in 1 ms steps
+    op_mass_kg: float = 0.05
+    op_stiffness: float = 500.0
+    op_damping: float = 6.0
+    op_force_n: float = 0.0  # amplitude of random forcing
+    ref_fraction: float = 1.0  # how far the reference closes (0-1)
+    ref_period_s: float = 1.0
+    random_ref: bool = False
+    wall_rad: tuple[float, float, float] = (1.5, 1.5, 1.5)
+    contact_stiffness: float = 3.2  # N m / rad
+    pressure_per_nm: float = 200.0  # sensor units per N m of contact torque
+    servo_damping_factor: float = 1.0  # true B / assumed lower bound B
+
+
+@dataclass
+class Trace:
+    """Per-step records of one run."""
+
+    t: list[float] = field(default_factory=list)
+    x_m: list[float] = field(default_factory=list)
+    force_n: list[float] = field(default_factory=list)
+    setpoint: list[tuple[float, float, float]] = field(default_factory=list)
+    finger: list[tuple[float, float, float]] = field(default_factory=list)
+    master_net_out_j: list[float] = field(default_factory=list)  # true work on the operator
+    storage_j: list[float] = field(default_factory=list)  # true hand-side storage S
+    ledgers: list[tuple[EnergyLedger, EnergyLedger, EnergyLedger]] = field(default_factory=list)
+    limited_master: int = 0
+    limited_hand: int = 0
+
+
+def reference(sc: Scenario, t: float, rng_ref: list[float]) -> float:
+    if sc.random_ref:
+        i = int(t / sc.ref_period_s) % len(rng_ref)
+        return rng_ref[i]
+    ph = (t % sc.ref_period_s) / sc.ref_period_s
+    return sc.ref_fraction * (0.5 - 0.5 * math.cos(2 * math.pi * ph))
+
+
+def servo_substep(x: float, y: float, wall: float, k: float, b: float, ke: float,
+                  h: float, tau: float = math.inf) -> float:
+    """Implicit Euler step of ``B xdot = sat_tau(K (y - x)) - ke max(0, x - wall)``.
+
+    The residual is strictly increasing in the new ``x``, so exactly one of the six linear
+    pieces (servo linear / saturated either way, in contact or free) is consistent.
+    """
+    c = b / h
+    for mode in ("lin", "+", "-"):
+        for ct in (0.0, 1.0):
+            if mode == "lin":
+                x1 = (c * x + k * y + ke * wall * ct) / (c + k + ke * ct)
+            else:
+                t = tau if mode == "+" else -tau
+                x1 = (c * x + t + ke * wall * ct) / (c + ke * ct)
+            u = k * (y - x1)
+            tol = 1e-12 * (1.0 + abs(u))
+            if mode == "lin" and abs(u) > tau + tol:
+                continue
+            if mode == "+" and u < tau - tol:
+                continue
+            if mode == "-" and u > -tau + tol:
+                continue
+            if (ct and x1 < wall - 1e-12) or (not ct and x1 > wall + 1e-12):
+                continue
+            return x1
+    raise AssertionError("no consistent servo piece")  # pragma: no cover
+
+
+def finger_state(x: float, pen: float, sc: Scenario, load: float) -> FingerState:
+    torque = sc.contact_stiffness * pen
+    p = sc.pressure_per_nm * torque
+    pressure = (0.1 * p, 0.3 * p, p, 0.2 * p, 0.0, 0.05 * p, 0.0, 0.0, 0.0)
+    return FingerState(proximal_rad=x, distal_rad=0.0, motor_angle_rad=x, load_units=load,
+                       pressure=pressure, contact=tuple(v > 1.0 for v in pressure))
+
+
+def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
+             travel_m: float = 0.025) -> Trace:
+    """Run the closed loop for ``sc.steps`` 1 ms steps and record everything."""
+    rng = np.random.default_rng(sc.seed)
+    links = [Link(np.random.default_rng(sc.seed * 7 + i + 1), sc.delay_steps, sc.jitter_steps,
+                  sc.loss, sc.dup) for i in range(4)]
+    m2c, c2h, h2c, c2m = links
+    rng_ref = list(rng.uniform(0.0, 1.0, 64))
+    forcing = rng.uniform(-1.0, 1.0, sc.steps // 20 + 2) * sc.op_force_n
+    vmax = 0.95 * p.trigger_max_speed_m_s
+    k_s, b_s = p.servo_stiffness_nm_per_rad, p.servo_damping_nm_s_per_rad * sc.servo_damping_factor
+    tau_s = p.servo_torque_max_nm
+    ms, cs, hs = suite.init_master(p), suite.init_controller(p), suite.init_hand(p)
+    x = v = 0.0
+    xf = [0.0, 0.0, 0.0]
+    y = (0.0, 0.0, 0.0)
+    force = 0.0
+    net_out = 0.0
+    last_fc = last_ms = last_hs = last_hc = None
+    tr = Trace()
+    hand_out = None
+    m_out = None
+    for k in range(sc.steps):
+        t = k * DT
+        # master side samples the trigger and decides the force for the next step
+        fc = c2m.deliver(k)
+        last_fc = fc if fc is not None else last_fc
+        ms, m_out = suite.step_master(ms, p, x, last_fc, DT)
+        force = m_out.force_n
+        m2c.send(k, _master_msg(m_out, k, t))
+        # controller
+        mm = m2c.deliver(k)
+        last_ms = mm if mm is not None else last_ms
+        hm = h2c.deliver(k)
+        last_hs = hm if hm is not None else last_hs
+        cs, c_out = suite.step_controller(cs, p, last_ms, last_hs, t, DT)
+        c2m.send(k, c_out.force_command)
+        c2h.send(k, c_out.hand_command)
+        # hand side at its own rate
+        hc = c2h.deliver(k)
+        last_hc = hc if hc is not None else last_hc
+        if k % sc.hand_every == 0:
+            fingers = tuple(finger_state(xf[i], max(0.0, xf[i] - sc.wall_rad[i]), sc,
+                                         k_s * (y[i] - xf[i])) for i in range(3))
+            hs, hand_out = suite.step_hand(hs, p, fingers, last_hc, DT * sc.hand_every)
+            y = hand_out.setpoint_rad
+            h2c.send(k, HandState(header=Header(seq=k, t_s=t,
+                                                energy_total_j=hand_out.energy_total_j),
+                                  fingers=fingers, preshape_rad=0.0))  # type: ignore[arg-type]
+        # physics over the next 1 ms with the force and set-points held
+        for i in range(3):
+            xf[i] = servo_substep(xf[i], y[i], sc.wall_rad[i], k_s, b_s, sc.contact_stiffness,
+                                  DT, tau_s)
+        x_ref = reference(sc, t, rng_ref) * travel_m
+        f_op = sc.op_stiffness * (x_ref - x) - sc.op_damping * v + forcing[k // 20]
+        v += (f_op - force) / sc.op_mass_kg * DT
+        v = min(max(v, -vmax), vmax)
+        x_new = min(max(x + v * DT, 0.0), travel_m)
+        if x_new in (0.0, travel_m):
+            v = 0.0
+        net_out += -force * (x_new - x)
+        x = x_new
+        storage = sum(servo_potential_j(y[i] - xf[i], k_s, tau_s)
+                      + 0.5 * sc.contact_stiffness * max(0.0, xf[i] - sc.wall_rad[i]) ** 2
+                      for i in range(3))
+        tr.t.append(t)
+        tr.x_m.append(x)
+        tr.force_n.append(force)
+        tr.setpoint.append(y)
+        tr.finger.append((xf[0], xf[1], xf[2]))
+        tr.master_net_out_j.append(net_out)
+        tr.storage_j.append(storage)
+        tr.ledgers.append((m_out.ledger, c_out.ledger, hand_out.ledger))  # type: ignore[union-attr]
+        tr.limited_master += int(m_out.limited)
+        tr.limited_hand += int(hand_out.limited)  # type: ignore[union-attr]
+    return tr
+
+
+def _master_msg(out: object, k: int, t: float) -> object:
+    from teleop.control.interface import master_message
+
+    return master_message(out, seq=k, t_s=t)  # type: ignore[arg-type]

@@ -1,0 +1,92 @@
+"""Secure mode at the service level: intruders cannot make the (simulated) hand move.
+
+The real hand service (``teleop run hand``, simulated hand, its own process) runs with
+``config/secure.toml``.  A stand-in controller holding the controller's credentials declares
+the controller's liveliness token (so the hand's loop starts) but sends no command.  Intruders
+(valid credentials of the wrong role, no credentials, a wrong password) send valid hand
+commands that close the fingers to 2.5 rad with plenty of energy, straight to the hand.  The
+hand's recording shows the commands never arrived and the fingers never moved.  Control: the
+same intruder without security does move the hand.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_secure_network import _free_port, _result, _start, _wait_ready
+
+from teleop.recording import read_recording
+from teleop.security.certs import create_certs
+
+pytestmark = [pytest.mark.network, pytest.mark.slow]
+
+REPO = Path(__file__).resolve().parents[3]
+SESSION = "sechand"
+INTRUDER_ANGLE = "2.5"
+
+
+def _run_hand(tmp: Path, secure: bool, intruders: list[dict]) -> tuple[dict, list[dict]]:
+    """Run the hand service ~3 s under attack; its recording's key figures and the intruders'."""
+    cert_dir = tmp / "certs"
+    if secure:
+        create_certs(cert_dir)
+    proto = "tls" if secure else "tcp"
+    p_ctrl, p_hand = _free_port(), _free_port()
+    ctrl_ep, hand_ep = f"{proto}/127.0.0.1:{p_ctrl}", f"{proto}/127.0.0.1:{p_hand}"
+    base = {"cert_dir": str(cert_dir), "session": SESSION, "secure": secure}
+    stand_in = _start({**base, "role": "controller", "listen": [ctrl_ep], "token": True})
+    _wait_ready(stand_in)
+    argv = [sys.executable, "-m", "teleop.cli", "run", "hand", "--duration", "3",
+            "--dashboard", "off", "--record", str(tmp / "rec"), "--no-realtime",
+            "--wait-peers", "15", "--set", f"session.name={SESSION}",
+            "--set", f"zenoh.endpoint='{ctrl_ep}'", "--set", f"zenoh.listen=['{hand_ep}']"]
+    if secure:
+        argv += ["--config", str(REPO / "config" / "secure.toml"),
+                 "--set", f"security.cert_dir='{cert_dir}'"]
+    hand = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=tmp)
+    procs = [_start({**base, "connect": [hand_ep, ctrl_ep], "run_s": 3.5,
+                     "encode_hand_command": True, "energy_j": 5.0,
+                     "pub": [["hand_command", INTRUDER_ANGLE]], **case}) for case in intruders]
+    for proc in procs:
+        _wait_ready(proc)
+    results = [_result(proc) for proc in procs]
+    try:
+        out, err = hand.communicate(timeout=40)
+    except subprocess.TimeoutExpired:
+        hand.kill()
+        hand.communicate()
+        raise AssertionError("hand service hung") from None
+    _result(stand_in)
+    assert hand.returncode == 0, err
+    rec = read_recording(tmp / "rec" / "hand.csv")
+    desired = np.nanmax(np.column_stack([rec.column(f"setpoint_desired_rad_f{i}")
+                                         for i in (1, 2, 3)]))
+    proximal = np.nanmax(np.abs(np.column_stack([rec.column(f"proximal_angle_rad_f{i}")
+                                                 for i in (1, 2, 3)])))
+    return {"samples": len(rec), "desired_max_rad": float(desired),
+            "proximal_max_rad": float(proximal)}, results
+
+
+def test_intruders_cannot_move_the_hand(tmp_path: Path) -> None:
+    figures, results = _run_hand(tmp_path, True, [
+        {"role": "master"},  # valid credentials, wrong role
+        {"role": "hand"},  # valid credentials, wrong role
+        {"role": "controller", "tamper": {"drop_auth": True}},  # no user/password
+        {"role": "controller", "tamper": {"password": "letmein"}},  # wrong password
+    ])
+    assert figures["samples"] > 60  # the loop ran (40 Hz for 3 s)
+    assert figures["desired_max_rad"] < 0.05  # no intruder command reached the hand
+    assert figures["proximal_max_rad"] < 0.02  # and the fingers did not move
+    assert results[0]["peers"] >= 1 and results[1]["peers"] >= 1  # connected, yet denied
+    assert results[2]["peers"] == 0 and results[3]["peers"] == 0  # refused outright
+
+
+def test_control_without_security_the_intruder_moves_the_hand(tmp_path: Path) -> None:
+    figures, _ = _run_hand(tmp_path, False, [{"role": "master"}])
+    assert figures["desired_max_rad"] == pytest.approx(float(INTRUDER_ANGLE))
+    assert figures["proximal_max_rad"] > 0.05

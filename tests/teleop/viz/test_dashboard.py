@@ -1,0 +1,67 @@
+"""Dashboard: every path logged, read back from a saved .rrd; finger drawing geometry."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from teleop.devices.base import HandReading
+from teleop.messages import FingerState
+from teleop.viz import dashboard as dash
+
+
+def reading() -> HandReading:
+    f = FingerState(proximal_rad=0.5, distal_rad=0.2, motor_angle_rad=0.7, load_units=50.0,
+                    pressure=tuple(float(i) for i in range(9)),
+                    contact=tuple(i in (2, 3) for i in range(9)))
+    return HandReading(t_s=0.0, fingers=(f, f, f), preshape_rad=0.1)
+
+
+def entity_paths(path: Path) -> set[str]:
+    from rerun.chunk import RrdReader
+
+    paths = set()
+    for chunk in RrdReader(path).stream():
+        if not chunk.is_static and chunk.num_rows > 0:
+            paths.add(chunk.entity_path.lstrip("/"))
+    return paths
+
+
+def test_all_dashboard_paths_hold_data(tmp_path: Path) -> None:
+    out = tmp_path / "d.rrd"
+    rec = dash.open_stream("test-recording", "save", path=out)
+    assert rec is not None
+    for k in range(3):
+        t = 0.02 * k
+        dash.log_master(rec, t, trigger_position_m=0.01, displayed_force_n=1.0, tank_j=0.9,
+                        port_in_j=0.1, port_out_j=0.05, delay_s=0.01)
+        dash.log_controller(rec, t, setpoints_rad=(1.0, 1.0, 1.0), commanded_force_n=1.0,
+                            energy_stored_j=0.01, master_delay_s=0.01, hand_delay_s=0.02)
+        dash.log_hand(rec, t, reading(), tank_j=1.0, port_in_j=0.2, port_out_j=0.1,
+                      delay_s=0.03)
+        dash.log_event(rec, t, "master", "passivity layer limiting the force")
+    rec.flush()
+    rec.disconnect()
+    found = entity_paths(out)
+    missing = [p for p in dash.DASHBOARD_PATHS if p not in found]
+    assert not missing, f"no data at {missing}"
+    assert "links/controller_to_master/delay_s" in found
+
+
+def test_finger_drawing_keeps_link_lengths_and_curls_towards_the_palm() -> None:
+    links, tendon, sensors = dash.finger_drawing(0.0, 0.0, 0)
+    assert links[-1] == pytest.approx((0.072 + 0.045, 0.0))
+    assert len(sensors) == 9 and len(tendon) == 4
+    links, _, _ = dash.finger_drawing(0.8, 0.6, 1)
+    (x0, y0), (x1, y1), (x2, y2) = links
+    assert math.hypot(x1 - x0, y1 - y0) == pytest.approx(0.072)
+    assert math.hypot(x2 - x1, y2 - y1) == pytest.approx(0.045)
+    assert y2 < y1 < 0.0  # flexion moves the finger towards -y
+    assert x0 == pytest.approx(0.14)
+
+
+def test_blueprint_builds() -> None:
+    bp = dash.blueprint()
+    assert bp is not None
