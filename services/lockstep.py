@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from services.factory import build_hand, build_master
 from services.hand_service import HandService
 from services.master_service import MasterService
 from services.samples import ControllerSample, HandSample, MasterSample
+from services.telemetry import Telemetry
 from teleop.config import TeleopConfig
 from teleop.devices.base import HandBackend, MasterBackend
 from teleop.transport.clock import VirtualClock
@@ -150,12 +152,14 @@ class _Recorder:
 def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = None,
                  master: MasterBackend | None = None, hand: HandBackend | None = None,
                  watchdogs: bool = True,
-                 progress: Callable[[float], None] | None = None) -> LockstepResult:
+                 progress: Callable[[float], None] | None = None,
+                 rec: Any | None = None) -> LockstepResult:
     """Run master, controller and hand in lockstep for ``duration_s`` of virtual time.
 
     ``seed`` (if given) replaces the session and link seeds; ``master``/``hand`` replace the
     backends the config names (fakes in tests); ``watchdogs`` turns the service watchdogs
-    off when False; ``progress(fraction)`` is called about 100 times.
+    off when False; ``progress(fraction)`` is called about 100 times; ``rec`` (a
+    ``rerun.RecordingStream``) gets the run logged like the live dashboard, in virtual time.
     """
     cfg = _seeded(cfg, seed)
     clock = VirtualClock(0.0)
@@ -168,16 +172,19 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     periods = [1.0 / s.rate_hz for s in services]
     ticks = [0, 0, 0]
     n_master = int(np.floor(duration_s * m_svc.rate_hz + 1e-9)) + 1
-    rec = _Recorder(n_master)
+    rows = _Recorder(n_master)
     last_c: ControllerSample | None = None
     last_h: HandSample | None = None
     for s in services:
         s.start()
+    tels = None
+    if rec is not None:
+        tels = [Telemetry(s.role, rec, None, 0.0, cfg.dashboard.rate_hz) for s in services]
     report_every = max(1, n_master // 100)
     try:
         while True:
             t = min(k * p for k, p in zip(ticks, periods, strict=True))
-            if t > duration_s + 1e-12 or rec.n >= n_master:
+            if t > duration_s + 1e-12 or rows.n >= n_master:
                 break
             if t > clock.now_s():
                 clock.set(t)
@@ -187,6 +194,8 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                 if abs(ticks[i] * periods[i] - t) < 1e-12 or ticks[i] * periods[i] < t:
                     sample = s.tick(ticks[i] * periods[i])
                     ticks[i] += 1
+                    if tels is not None:
+                        tels[i].emit(sample, s.events, h_svc.last_reading if i == 2 else None)
                     if i == 0:
                         m_sample = sample  # type: ignore[assignment]
                     elif i == 1:
@@ -194,19 +203,19 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                     else:
                         last_h, h_fresh = sample, True  # type: ignore[assignment]
             if m_sample is not None:
-                rec.row(m_sample, last_c, last_h, c_fresh, h_fresh)
-                if progress is not None and rec.n % report_every == 0:
-                    progress(rec.n / n_master)
+                rows.row(m_sample, last_c, last_h, c_fresh, h_fresh)
+                if progress is not None and rows.n % report_every == 0:
+                    progress(rows.n / n_master)
     finally:
         for s in services:
             s.close()
-    return _result(cfg, duration_s, rec, m_svc, c_svc, h_svc)
+    return _result(cfg, duration_s, rows, m_svc, c_svc, h_svc)
 
 
-def _result(cfg: TeleopConfig, duration_s: float, rec: _Recorder, m_svc: MasterService,
+def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: MasterService,
             c_svc: ControllerService, h_svc: HandService) -> LockstepResult:
-    n = rec.n
-    M, C, H = rec.m[:n], rec.c[:n], rec.h[:n]  # noqa: N806
+    n = rows.n
+    M, C, H = rows.m[:n], rows.c[:n], rows.h[:n]  # noqa: N806
     mc = {k: M[:, j] for j, k in enumerate(_MASTER_COLS)}
     hp = 15
     initial = sum(s.ledger.initial_j for s in (m_svc, c_svc, h_svc) if s.ledger is not None)

@@ -78,13 +78,23 @@ def _dashboard_stream(opts: ServiceOptions) -> Any:
     return open_stream(rid, mode)
 
 
+#: what the master and the hand wait for before ticking: the controller's loop is running
+#: (it starts only once master and hand are alive), so the whole chain is up
+FIRST_SIGNAL: dict[str, str] = {"master": "force_command", "hand": "hand_command"}
+
+
 def _wait_for_peers(bus: Any, role: str, loop: RateLoop, timeout_s: float | None) -> bool:
     deadline = None if timeout_s is None else time.monotonic() + timeout_s
     told = False
+    first = FIRST_SIGNAL.get(role)
     while not loop.stop_event.is_set():
         missing = [p for p in PEERS[role] if not bus.alive(p)]
-        if not missing:
+        if not missing and first is not None and bus.receive(first):
+            first = None  # the controller is ticking
+        if not missing and first is None:
             return True
+        if not missing:
+            missing = ["controller's first command"]
         if deadline is not None and time.monotonic() > deadline:
             print(f"{role}: peers not alive after {timeout_s:g} s: {', '.join(missing)}",
                   file=sys.stderr, flush=True)

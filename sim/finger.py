@@ -13,6 +13,10 @@ API summary (the shared contract; other modules use exactly these names)::
 
     weight_equilibrium(params, force_n) -> (proximal_rad, distal_rad)   # Table 4.2 test
 
+Modules: constants in ``sim/params.py``, the state in ``sim/state.py``, measurements in
+``sim/readout.py``, contact and pressures in ``sim/contact.py``, the servo's effort effects and
+friction in ``sim/motor.py``; this module holds the step and re-exports the API.
+
 Model (report chapter 4 / appendix B):
 
 * generalised coordinates: proximal angle on the base joint (torsional spring with a preload
@@ -43,111 +47,24 @@ series with the tendon (N per rad of shaft angle); nonlinear_stiffness is a cubi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
-from sim.contact import ContactObject, contact_object_from_config, pad_contact, sensor_pressures
+from sim.contact import ContactObject, contact_object_from_config, pad_contact
 from sim.motor import HOLD_ZERO, MotorCommand, apply_effort_effects, friction_force_n
 from sim.params import JOINT_RATIO, FingerParams, default_finger_params
+from sim.readout import FingerOutputs, finger_energy_j, finger_outputs, tendon_stretch_m
+from sim.state import FingerState, initial_finger_state
 from teleop.effects import EffectSet
 
 __all__ = [
     "ContactObject", "FingerOutputs", "FingerParams", "FingerState", "MotorCommand",
     "contact_object_from_config", "default_finger_params", "finger_outputs", "finger_step",
     "initial_finger_state", "weight_equilibrium", "JOINT_RATIO", "NO_EFFECTS",
+    "finger_energy_j", "hung_weight_step", "tendon_stretch_m",
 ]
 
 NO_EFFECTS = EffectSet()
 _PROX_PAD_START_M = 0.010
-
-
-@dataclass(frozen=True, slots=True)
-class FingerState:
-    """The explicit state of one finger (true physical values, SI).
-
-    Rarely read values are grouped in tuples (fewer fields make the hot step cheaper); the
-    properties below name them.
-    """
-
-    t_s: float
-    prox_rad: float
-    prox_vel_rad_s: float
-    flex_rad: tuple[float, ...]
-    flex_vel_rad_s: tuple[float, ...]
-    motor_rad: float
-    motor_vel_rad_s: float
-    tendon_force_n: float
-    # (backlash gap = shaft - spool angle, servo set-point, effort acting on the motor after
-    #  effects and lag, effort the servo asked for before effects)
-    drive: tuple[float, float, float, float]
-    # (proximal pad contact force N, where along the proximal link m, same for the distal)
-    pads: tuple[float, float, float, float]
-    # (command in force, last command received, pending delayed commands (due time, command))
-    command: tuple[MotorCommand, MotorCommand | None, tuple[tuple[float, MotorCommand], ...]]
-
-    @property
-    def spool_gap_rad(self) -> float:
-        """Backlash: motor shaft angle minus spool angle."""
-        return self.drive[0]
-
-    @property
-    def ref_rad(self) -> float:
-        """The servo's internal set-point (shaft rad)."""
-        return self.drive[1]
-
-    @property
-    def effort_units(self) -> float:
-        """Effort acting on the motor (servo units, after effects)."""
-        return self.drive[2]
-
-    @property
-    def cmd_effort_units(self) -> float:
-        """Effort the servo asked for (servo units, before effects)."""
-        return self.drive[3]
-
-    @property
-    def prox_contact_n(self) -> float:
-        """Contact force on the proximal pad."""
-        return self.pads[0]
-
-    @property
-    def dist_contact_n(self) -> float:
-        """Contact force on the distal pad."""
-        return self.pads[2]
-
-    @property
-    def active_cmd(self) -> MotorCommand:
-        """The command the motor is executing (after any delay)."""
-        return self.command[0]
-
-
-def initial_finger_state(params: FingerParams) -> FingerState:
-    """The finger open on its stop, motor at its calibrated zero, tendon just slack."""
-    zeros = (0.0,) * params.n_flex
-    return FingerState(0.0, 0.0, 0.0, zeros, zeros, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0, 0.0),
-                       (0.0, 0.0, 0.0, 0.0), (HOLD_ZERO, None, ()))
-
-
-@dataclass(frozen=True, slots=True)
-class FingerOutputs:
-    """What can be measured or drawn of a finger state (angles with any sensor offset)."""
-
-    t_s: float
-    proximal_rad: float
-    distal_rad: float
-    motor_angle_rad: float
-    motor_velocity_rad_s: float
-    tendon_force_n: float
-    motor_load_units: float
-    pressure: tuple[float, ...]
-    contact: tuple[bool, ...]
-    true_proximal_rad: float
-    true_motor_angle_rad: float
-    joint_angle_rad: float               # driver's joint angle: measured shaft / 1.42
-    points: tuple[tuple[float, float], ...]   # base, flexure joints, distal origin, tip (world)
-    tendon_points: tuple[tuple[float, float], ...]  # X1, X2, Xc (world)
-    tendon_point_forces_n: tuple[float, float, float]  # pseudo-transformer force magnitudes
-    contact_points: tuple[tuple[float, float], ...]  # world points where contact forces act
 
 
 _CONSTS: dict[int, tuple[FingerParams, tuple[Any, ...]]] = {}
@@ -463,97 +380,3 @@ def weight_equilibrium(params: FingerParams, force_n: float, *, dt_s: float = 1e
                 abs(v) < 1e-6 for v in state.flex_vel_rad_s):
             break
     return state.prox_rad, sum(state.flex_rad)
-
-
-def finger_outputs(state: FingerState, params: FingerParams, obj: ContactObject,
-                   effects: EffectSet) -> FingerOutputs:
-    """Measurements and drawing geometry of ``state`` (pure; no noise)."""
-    p = params
-    off = effects.sensor_offset
-    phi = state.prox_rad
-    cphi, sphi = math.cos(phi), math.sin(phi)
-
-    def world(x: float, y: float) -> tuple[float, float]:
-        return (cphi * x - sphi * y, sphi * x + cphi * y)
-
-    pts = [(0.0, 0.0)]
-    x, y, a = p.proximal_rigid_m, 0.0, 0.0
-    pts.append(world(x, y))
-    for s in state.flex_rad:
-        a += s
-        x += p.flex_segment_m * math.cos(a)
-        y += p.flex_segment_m * math.sin(a)
-        pts.append(world(x, y))
-    ca, sa = math.cos(a), math.sin(a)
-
-    def distal(dx: float, dy: float) -> tuple[float, float]:
-        return world(x + ca * dx - sa * dy, y + sa * dx + ca * dy)
-
-    pts.append(distal(p.distal_length_m, 0.0))
-    x1 = world(*p.pin1_xy_m)
-    x2 = distal(*p.pin2_xy_m)
-    xc = distal(*p.tip_xy_m)
-    # pseudo-transformer forces: |F| = 2 F_s cos(theta), theta = half the string's turn angle
-    fs = state.tendon_force_n
-    base_dir = _unit(world(0.0, p.r_base_m), x1)
-    d12 = _unit(x1, x2)
-    d2c = _unit(x2, xc)
-    f1 = fs * math.sqrt(max(0.0, 2.0 + 2.0 * (base_dir[0] * d12[0] + base_dir[1] * d12[1])))
-    f2 = fs * math.sqrt(max(0.0, 2.0 + 2.0 * (d12[0] * d2c[0] + d12[1] * d2c[1])))
-    pc_n, pc_x, dc_n, dc_x = state.pads
-    pressure = sensor_pressures(p, pc_n, pc_x, dc_n, dc_x)
-    thr = p.contact_threshold
-    cpts = []
-    if pc_n > 0.0:
-        cpts.append(world(pc_x, p.pad_offset_m))
-    if dc_n > 0.0:
-        cpts.append(distal(dc_x, p.pad_offset_m))
-    motor_meas = state.motor_rad + off
-    return FingerOutputs(
-        t_s=state.t_s, proximal_rad=phi + off, distal_rad=sum(state.flex_rad),
-        motor_angle_rad=motor_meas, motor_velocity_rad_s=state.motor_vel_rad_s,
-        tendon_force_n=fs, motor_load_units=state.drive[2], pressure=pressure,
-        contact=tuple(v > thr for v in pressure), true_proximal_rad=phi,
-        true_motor_angle_rad=state.motor_rad, joint_angle_rad=motor_meas / JOINT_RATIO,
-        points=tuple(pts), tendon_points=(x1, x2, xc), tendon_point_forces_n=(f1, f2, fs),
-        contact_points=tuple(cpts))
-
-
-def _unit(a: tuple[float, float], b: tuple[float, float]) -> tuple[float, float]:
-    """Unit vector from a towards b."""
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    n = math.hypot(dx, dy) or 1.0
-    return (dx / n, dy / n)
-
-
-def finger_energy_j(state: FingerState, params: FingerParams) -> float:
-    """Mechanical energy (kinetic + springs + tendon) without contact or effects, for tests."""
-    p = params
-    ke = 0.5 * p.inertia_proximal_kg_m2 * state.prox_vel_rad_s ** 2
-    ke += sum(0.5 * p.inertia_flex_kg_m2 * v * v for v in state.flex_vel_rad_s)
-    ke += 0.5 * p.inertia_motor_kg_m2 * state.motor_vel_rad_s ** 2
-    pe = 0.5 * p.k_base_nm_per_rad * (state.prox_rad + p.base_preload_rad) ** 2
-    kseg = p.k_flex_segment_nm_per_rad
-    pe += sum(0.5 * kseg * s * s for s in state.flex_rad)
-    e = tendon_stretch_m(state, p)
-    if e > 0.0:
-        pe += 0.5 * p.k_tendon_n_per_m * e * e
-    return ke + pe
-
-
-def tendon_stretch_m(state: FingerState, params: FingerParams) -> float:
-    """Tendon elongation beyond its slack length (eq. 4.4 path length + spool), no backlash."""
-    p = params
-    x, y, a = p.proximal_rigid_m, 0.0, 0.0
-    for s in state.flex_rad:
-        a += s
-        x += p.flex_segment_m * math.cos(a)
-        y += p.flex_segment_m * math.sin(a)
-    ca, sa = math.cos(a), math.sin(a)
-    p1x, p1y = p.pin1_xy_m
-    p2x, p2y = p.pin2_xy_m
-    l12 = math.hypot(x + ca * p2x - sa * p2y - p1x, y + sa * p2x + ca * p2y - p1y)
-    n = len(state.flex_rad)
-    l12_0 = math.hypot(p.proximal_rigid_m + n * p.flex_segment_m + p2x - p1x, p2y - p1y)
-    return (p.r_motor_m * state.motor_rad + (l12 - l12_0) - p.r_base_m * state.prox_rad
-            - p.tendon_slack_m)

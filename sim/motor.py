@@ -6,8 +6,9 @@ are the servo's P controller on the (measured) shaft angle, clamped by the torqu
 set-point makes a large error and so a load spike (report Fig. 3.3).  Velocity mode is, as in the
 stock driver, a position move at a set speed.
 
-Pure functions over floats; the delay line and lag state live in
-:class:`sim.finger.FingerState`.
+The servo's set-point ramp and P controller are inlined in the hot step
+(``sim.finger._step``); the effects on the effort and the friction law are here.  Pure functions
+over floats; the delay line and lag state live in :class:`sim.finger.FingerState`.
 """
 
 from __future__ import annotations
@@ -39,35 +40,6 @@ class MotorCommand:
 
 
 HOLD_ZERO = MotorCommand()
-
-
-def advance_reference(ref_rad: float, cmd: MotorCommand, dt_s: float) -> float:
-    """The servo's internal set-point: jumps to the goal (speed 0) or ramps at the speed."""
-    speed = cmd.speed_rad_s
-    if speed <= 0.0 or cmd.mode == "force":
-        return cmd.goal_rad
-    step = speed * dt_s
-    err = cmd.goal_rad - ref_rad
-    if err > step:
-        return ref_rad + step
-    if err < -step:
-        return ref_rad - step
-    return cmd.goal_rad
-
-
-def servo_effort_units(cmd: MotorCommand, ref_rad: float, measured_rad: float,
-                       params: FingerParams) -> float:
-    """What the servo asks of its motor (units, + pulls the tendon), before effects."""
-    limit = params.max_effort_units * min(max(cmd.torque_limit, 0.0), 1.0)
-    if cmd.mode == "force":
-        u = cmd.force_units
-    else:
-        u = params.kp_units_per_rad * (ref_rad - measured_rad)
-    if u > limit:
-        return limit
-    if u < -limit:
-        return -limit
-    return u
 
 
 def apply_effort_effects(u: float, lagged: float, effects: EffectSet, params: FingerParams,

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from teleop.config.control import ControllerConfig
+
 
 @dataclass(frozen=True, slots=True)
 class DirectLoopParams:
@@ -101,3 +103,31 @@ def predicted_max_stable_delay_s(p: DirectLoopParams | None = None) -> float:
         phase = (math.pi + cmath.phase(loop_gain(p, wc))) % (2.0 * math.pi)
         best = min(best, phase / wc)
     return best
+
+
+def loop_params_from_config(cfg: ControllerConfig, *, mass_kg: float,
+                            damping_n_s_per_m: float, stiffness_n_per_m: float,
+                            contact_stiffness_nm_per_rad: float,
+                            pressure_per_nm: float,
+                            servo_damping_nm_s_per_rad: float | None = None) -> DirectLoopParams:
+    """The loop of a configured direct controller against a given operator and contact.
+
+    ``G``, ``K``, the filter and ``K_f = pressure_per_nm * force_per_pressure_n`` come from the
+    controller config; the operator (``mass_kg``, ``damping_n_s_per_m``, ``stiffness_n_per_m``,
+    e.g. ``sim.operator.STYLES``), the contact stiffness at the joint and the peak pressure per
+    N m of contact torque describe the plant.  ``servo_damping_nm_s_per_rad`` defaults to the
+    config's (lower-bound) servo damping.
+    """
+    tr = cfg.transparency
+    return DirectLoopParams(
+        mass_kg=mass_kg, damping_n_s_per_m=damping_n_s_per_m,
+        stiffness_n_per_m=stiffness_n_per_m,
+        position_gain_rad_per_m=abs(tr.closed_angle_rad - tr.open_angle_rad)
+        / tr.trigger_travel_m,
+        servo_stiffness_nm_per_rad=cfg.ports.servo_stiffness_nm_per_rad,
+        servo_damping_nm_s_per_rad=(cfg.ports.servo_damping_nm_s_per_rad
+                                    if servo_damping_nm_s_per_rad is None
+                                    else servo_damping_nm_s_per_rad),
+        contact_stiffness_nm_per_rad=contact_stiffness_nm_per_rad,
+        force_gain_n_per_nm=pressure_per_nm * tr.force_per_pressure_n,
+        filter_hz=tr.force_filter_hz)

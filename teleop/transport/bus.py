@@ -10,6 +10,7 @@ counted as ``stale_seq``) -> :class:`Received`, with the achieved delay measured
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -18,6 +19,7 @@ from teleop.messages import Message
 from teleop.transport.delay_line import (
     DelayLineState,
     DelayParams,
+    Delivered,
     delay_line_pop_due,
     delay_line_push,
     delay_params,
@@ -124,6 +126,28 @@ class Inbox:
     def release(self, now_s: float) -> list[Received]:
         """Decode and return everything due at ``now_s``."""
         self.state, due = delay_line_pop_due(self.state, now_s)
+        return self._deliver(due)
+
+    def arrive_and_release(self, arrivals: Iterable[tuple[bytes, float]],
+                           now_s: float) -> list[Received]:
+        """:meth:`arrive` each ``(payload, t_s)`` then :meth:`release` at ``now_s``.
+
+        Due messages are popped as they come so a large backlog does not pile up in the
+        delay line (whose push is O(messages in flight)); the result is in release order.
+        """
+        due: list[Delivered] = []
+        for payload, t_s in arrivals:
+            self.state = delay_line_push(self.state, self.params, payload, t_s)
+            pending = self.state.pending
+            if pending and pending[0].release_t_s <= now_s:
+                self.state, got = delay_line_pop_due(self.state, now_s)
+                due += got
+        self.state, got = delay_line_pop_due(self.state, now_s)
+        due += got
+        due.sort(key=lambda d: d.release_t_s)
+        return self._deliver(due)
+
+    def _deliver(self, due: list[Delivered]) -> list[Received]:
         out: list[Received] = []
         for d in due:
             msg = self._decoder.decode(d.payload, self.spec.msg_type)

@@ -29,7 +29,7 @@ import json
 import struct
 import sys
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 
 import zenoh
 
@@ -60,6 +60,12 @@ from teleop.transport.safe_decoder import SafeDecoder
 
 _STAMP = struct.Struct("<d")
 TX_QUEUE_BATCHES = 16
+
+
+def _drain(queue: collections.deque[tuple[bytes, float]]) -> Iterator[tuple[bytes, float]]:
+    """Pop from the left until empty (safe while a zenoh thread appends on the right)."""
+    while queue:
+        yield queue.popleft()
 
 
 def role_endpoints(role: str, zcfg: ZenohConfig) -> tuple[list[str], list[str]]:
@@ -190,10 +196,7 @@ class ZenohBus:
                     if i.spec.sender == role:
                         i.reset_seq()
         queue = self._arrivals[signal]
-        while queue:
-            payload, t_s = queue.popleft()
-            inbox.arrive(payload, t_s)
-        return inbox.release(self._clock.now_s())
+        return inbox.arrive_and_release(_drain(queue), self._clock.now_s())
 
     def alive(self, role: str) -> bool:
         """Our own role while open; a peer while its liveliness token is present."""

@@ -85,3 +85,20 @@ def test_runs_faster_than_real_time() -> None:
     t0 = time.perf_counter()
     run(duration_s=2.0)
     assert time.perf_counter() - t0 < 2.0
+
+
+def test_a_lockstep_run_can_be_logged_to_the_dashboard(tmp_path) -> None:  # noqa: ANN001
+    from rerun.chunk import RrdReader
+
+    from teleop.viz.dashboard import DASHBOARD_PATHS, open_stream
+
+    out = tmp_path / "lockstep.rrd"
+    rec = open_stream("lockstep-test", "save", path=out)
+    cfg = load_config(None, ["master.virtual.repeat=false", "master.virtual.close_s=0.0",
+                             "master.virtual.ramp_s=0.3"])
+    run_lockstep(cfg, 1.0, seed=1, hand=FakeHand(contact_rad=0.5), rec=rec)
+    rec.flush()
+    rec.disconnect()
+    found = {c.entity_path.lstrip("/") for c in RrdReader(out).stream()
+             if not c.is_static and c.num_rows > 0}
+    assert not [p for p in DASHBOARD_PATHS if p not in found]

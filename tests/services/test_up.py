@@ -138,3 +138,33 @@ def test_user_mistakes_are_one_line_and_exit_2(args: tuple[str, ...]) -> None:
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.network
+@pytest.mark.slow
+def test_ctrl_c_stops_everything_within_2_s(tmp_path: Path) -> None:
+    import signal
+
+    port = free_port()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "teleop.cli", "up", "--dashboard", "off", "--record",
+         str(tmp_path), "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}",
+         "--set", f"session.name=ctrlc{port}"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None
+    lines = []
+    for line in proc.stdout:
+        lines.append(line)
+        if "running" in line:
+            break
+    time.sleep(1.0)
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    elapsed = time.monotonic() - t0
+    assert proc.returncode == 0, "".join(lines) + out + err
+    assert elapsed < 2.5
+    assert "interrupted" in out and "did not stop" not in out
+    assert "Traceback" not in err
+    for role in ("master", "controller", "hand"):  # each child closed its recording
+        assert read_recording(tmp_path / f"{role}.csv").t_s.size > 10

@@ -166,3 +166,31 @@ def test_block_face_stops_the_finger_and_loads_the_touching_sensors() -> None:
     assert all(y - block.y_m < depth_max for _, y in out.points)
     assert max(out.pressure) > P.contact_threshold
     assert sum(out.contact) >= 1
+
+
+def test_driver_command_delay_option_delays_motion_by_0_09_s() -> None:
+    slow = replace(P, command_delay_s=0.09)
+    cmd = MotorCommand("position", goal_rad=1.0)
+    starts = []
+    for params in (P, slow):
+        st = initial_finger_state(params)
+        k = 0
+        while abs(st.motor_rad) < 1e-4:
+            st = finger_step(st, cmd, params, NONE, NO_EFFECTS, 1e-3)
+            k += 1
+        starts.append(k * 1e-3)
+    assert starts[1] - starts[0] == pytest.approx(0.09, abs=0.0015)
+
+
+def test_pseudo_transformer_forces_are_2_fs_cos_theta() -> None:
+    st = _settle(1.0)
+    out = finger_outputs(st, P, NONE, NO_EFFECTS)
+    fs = out.tendon_force_n
+    assert fs > 0
+    x1, x2, xc = (np.array(v) for v in out.tendon_points)
+    # at X2 the string arrives from X1 and leaves to Xc: theta is half the angle between them
+    a, b = x1 - x2, xc - x2
+    cos_full = a @ b / np.linalg.norm(a) / np.linalg.norm(b)
+    theta = 0.5 * np.arccos(np.clip(cos_full, -1, 1))
+    assert out.tendon_point_forces_n[1] == pytest.approx(2 * fs * np.cos(theta), rel=1e-6)
+    assert out.tendon_point_forces_n[2] == pytest.approx(fs)

@@ -11,6 +11,7 @@ Checked at every 1 ms sample of the closed loop (``_ctl_harness``):
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import pytest
 from _ctl_harness import Scenario, run_loop
@@ -45,19 +46,19 @@ scenarios = st.builds(
 )
 
 
-def check_run(kind: str, sc: Scenario, **tank: float) -> None:
-    cfg = ControllerConfig(kind=kind)
-    p = control_params(cfg)
-    if tank:
-        from dataclasses import replace
-        p = replace(p, **tank)
+def check_run(kind: str, sc: Scenario, **overrides: float) -> None:
+    """Run the loop and check the invariants at every sample (in hand-side joules when the
+    controller scales power by ``energy_scale`` = rho: master energies count rho times)."""
+    p = replace(control_params(ControllerConfig(kind=kind)), **overrides)
+    rho = p.energy_scale
     tr = run_loop(CONTROLLERS[kind], p, sc)
-    h0 = sum(led.initial_j for led in tr.ledgers[0])
+    m0, c0, h0 = (led.initial_j for led in tr.ledgers[0])
+    bound = rho * m0 + c0 + h0
     for k, (net, store, leds) in enumerate(zip(tr.master_net_out_j, tr.storage_j, tr.ledgers,
                                               strict=True)):
         assert math.isfinite(net) and math.isfinite(store), k
-        assert net + store <= h0 + 1e-9, (k, net, store, h0)
-        rep = energy_balance(leds)
+        assert rho * net + store <= bound + 1e-9 * max(1.0, bound), (k, net, store, bound)
+        rep = energy_balance(leds, weights=(rho, 1.0, 1.0))
         assert rep.ok, (k, rep.reason)
         assert all(led.tank_j >= -1e-12 for led in leds), k
     assert all(math.isfinite(f) for f in tr.force_n)
@@ -77,6 +78,14 @@ def test_two_layer_passive_for_any_tank_tuning(sc: Scenario, split: float, beta:
                                                reserve: float, initial: float) -> None:
     check_run("two-layer", sc, controller_split=split, transfer_fraction=beta,
               controller_fraction=beta, reserve_j=reserve, initial_j=initial)
+
+
+@pytest.mark.parametrize("kind", ["two-layer", "tdpa"])
+@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(sc=scenarios, rho=st.floats(1.0, 100.0))
+def test_power_scaled_controllers_are_passive_in_scaled_energy(kind: str, sc: Scenario,
+                                                               rho: float) -> None:
+    check_run(kind, sc, energy_scale=rho)
 
 
 def test_direct_control_fails_the_same_check() -> None:

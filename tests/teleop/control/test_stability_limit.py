@@ -81,3 +81,17 @@ def test_stiffer_contact_lowers_the_limit() -> None:
                             filter_hz=None)
     stiff = replace(soft, contact_stiffness_nm_per_rad=6.0)
     assert predicted_max_stable_delay_s(stiff) < predicted_max_stable_delay_s(soft)
+
+
+def test_loop_params_from_config_uses_the_transparency_map() -> None:
+    from teleop.config.control import ControllerConfig
+    from teleop.control.stability_limit import loop_params_from_config
+
+    p = loop_params_from_config(ControllerConfig(), mass_kg=0.05, damping_n_s_per_m=6.0,
+                                stiffness_n_per_m=500.0, contact_stiffness_nm_per_rad=3.2,
+                                pressure_per_nm=200.0, servo_damping_nm_s_per_rad=0.8)
+    assert p.position_gain_rad_per_m == 120.0
+    assert p.force_gain_n_per_nm == 4.0
+    assert predicted_max_stable_delay_s(p) == pytest.approx(
+        predicted_max_stable_delay_s(DirectLoopParams(servo_damping_nm_s_per_rad=0.8,
+                                                      force_gain_n_per_nm=4.0)))

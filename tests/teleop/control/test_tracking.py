@@ -52,14 +52,22 @@ HARNESS_LOOP = DirectLoopParams(mass_kg=0.05, damping_n_s_per_m=6.0, stiffness_n
 
 
 def hold_scenario(delay_steps: int) -> Scenario:
-    """Close onto a contact at 1.5 rad and hold it (a slow 8 s script: 4 s shown)."""
-    return Scenario(steps=4000, delay_steps=delay_steps, ref_period_s=8.0, ref_fraction=1.0,
-                    wall_rad=(1.5,) * 3, hand_every=1)
+    """Close onto a contact at 2 rad and press (a slow 8 s script: its first 4 s), with the
+    servo below its torque limit so the loop is the linear one of ``HARNESS_LOOP``."""
+    return Scenario(steps=4000, delay_steps=delay_steps, ref_period_s=8.0, ref_fraction=0.9,
+                    wall_rad=(2.0,) * 3, hand_every=1)
 
 
 def round_trip_s(delay_steps: int) -> float:
     """Four one-way link delays plus two 1 ms sample latencies of the harness loop."""
     return (4 * delay_steps + 2) * 1e-3
+
+
+def oscillation_n(force: list[float]) -> float:
+    """RMS of the last 1.5 s of force about its 0.1 s moving average."""
+    f = np.asarray(force[-1500:])
+    smooth = np.convolve(f, np.ones(101) / 101, mode="same")
+    return float(np.std((f - smooth)[50:-50]))
 
 
 def test_direct_control_with_delay_oscillates_and_generates_energy() -> None:
@@ -69,14 +77,13 @@ def test_direct_control_with_delay_oscillates_and_generates_energy() -> None:
     unstable_d = 12  # round trip 50 ms, about twice the limit
     assert round_trip_s(stable_d) < 0.6 * t_max and round_trip_s(unstable_d) > 1.5 * t_max
     ok, bad = run("direct", hold_scenario(stable_d)), run("direct", hold_scenario(unstable_d))
-    late_ok = np.std(ok.force_n[-1000:])
-    late_bad = np.std(bad.force_n[-1000:])
-    assert late_bad > 5 * late_ok  # a sustained large oscillation instead of a steady grasp
-    assert late_bad > 2.0
-    # the loop generates energy: the hand's servo springs and the contact end up holding far
-    # more than any tank ever had, and the hand port's own books show net generation
-    assert max(bad.storage_j) > 10.0
-    assert min(led.tank_j for led in bad.ledgers[-1]) < -5.0
+    assert oscillation_n(bad.force_n) > 5 * oscillation_n(ok.force_n)
+    assert oscillation_n(bad.force_n) > 0.2
+    # the loop generates energy: the hand's servo springs and the contact end up holding
+    # many times what a steady grasp holds, and the hand port's books show net generation
+    assert max(bad.storage_j) > 10 * max(ok.storage_j)
+    assert min(led.tank_j for led in bad.ledgers[-1]) < -2.0
+    assert min(led.tank_j for led in ok.ledgers[-1]) > -0.5
     # the two-layer controller at the same delay stays within its energy budget
     tl = run("two-layer", hold_scenario(unstable_d))
     h0 = sum(led.initial_j for led in tl.ledgers[0])
