@@ -198,14 +198,22 @@ class Launcher:
             if ok:
                 say("running" + (f" for {duration_s:g} s" if duration_s is not None
                                  else "; Ctrl-C to stop"))
-                end = None if duration_s is None else time.monotonic() + duration_s
+                t_run = time.monotonic()
+                end = None if duration_s is None else t_run + duration_s
+                tty = sys.stdout.isatty()
                 while end is None or time.monotonic() < end:
                     dead = [r for r, p in self.procs.items() if p.poll() is not None]
                     if dead:
                         say(f"{', '.join(dead)} exited early")
                         ok = False
                         break
+                    if tty:  # a live elapsed-time line
+                        total = f" / {duration_s:g}" if duration_s is not None else ""
+                        print(f"\rteleop up: {time.monotonic() - t_run:5.1f}{total} s",
+                              end="", flush=True)
                     time.sleep(0.05)
+                if tty:
+                    print(flush=True)
         except KeyboardInterrupt:
             interrupted = True
             say("interrupted, stopping")

@@ -108,6 +108,40 @@ class LockstepResult:
         return float(max(0.0, -float(np.min(self.energy_margin_j)))) if self.t_s.size else 0.0
 
 
+@dataclass
+class LockstepContext:
+    """The running services of a lockstep run, handed to ``hook(t_s, ctx)`` before each
+    time step.  A hook may inject faults: close a service's bus view and set it to None (the
+    service is dead: not ticked), put a new shell on a fresh view (a restart), or push raw
+    bytes with ``hub``'s views.  Mutable on purpose; only hooks touch it."""
+
+    cfg: TeleopConfig
+    clock: VirtualClock
+    hub: InProcessHub
+    master: MasterService | None
+    controller: ControllerService | None
+    hand: HandService | None
+    controller_restarts: int = 0
+
+    def kill_controller(self) -> None:
+        """The controller dies: its bus view closes (liveliness lost) and it stops ticking."""
+        if self.controller is not None:
+            self.controller.bus.close()
+            self.controller = None
+
+    def restart_controller(self) -> None:
+        """Kill the controller (if running) and start a fresh one on a new bus view.
+
+        The new controller counts its messages from 1 again; its peers accept them only if
+        their sequence filters are reset when a sender rejoins (the zenoh bus does that on
+        the liveliness token's return)."""
+        if self.controller is not None:
+            self.controller.bus.close()
+        self.controller = ControllerService(self.cfg, self.hub.bus("controller"),
+                                            watchdogs=True)
+        self.controller_restarts += 1
+
+
 def _seeded(cfg: TeleopConfig, seed: int | None) -> TeleopConfig:
     if seed is None:
         return cfg
@@ -153,13 +187,17 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                  master: MasterBackend | None = None, hand: HandBackend | None = None,
                  watchdogs: bool = True,
                  progress: Callable[[float], None] | None = None,
-                 rec: Any | None = None) -> LockstepResult:
+                 rec: Any | None = None,
+                 hook: Callable[[float, LockstepContext], None] | None = None
+                 ) -> LockstepResult:
     """Run master, controller and hand in lockstep for ``duration_s`` of virtual time.
 
     ``seed`` (if given) replaces the session and link seeds; ``master``/``hand`` replace the
     backends the config names (fakes in tests); ``watchdogs`` turns the service watchdogs
     off when False; ``progress(fraction)`` is called about 100 times; ``rec`` (a
-    ``rerun.RecordingStream``) gets the run logged like the live dashboard, in virtual time.
+    ``rerun.RecordingStream``) gets the run logged like the live dashboard, in virtual time;
+    ``hook(t_s, ctx)`` is called before each time step with a :class:`LockstepContext`
+    (fault injection: kill or restart a service).
     """
     cfg = _seeded(cfg, seed)
     clock = VirtualClock(0.0)
@@ -168,7 +206,8 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                           watchdogs=watchdogs)
     c_svc = ControllerService(cfg, hub.bus("controller"), watchdogs=watchdogs)
     h_svc = HandService(cfg, hub.bus("hand"), hand or build_hand(cfg), watchdogs=watchdogs)
-    services = (m_svc, c_svc, h_svc)
+    ctx = LockstepContext(cfg, clock, hub, m_svc, c_svc, h_svc)
+    services: list[Any] = [m_svc, c_svc, h_svc]
     periods = [1.0 / s.rate_hz for s in services]
     ticks = [0, 0, 0]
     n_master = int(np.floor(duration_s * m_svc.rate_hz + 1e-9)) + 1
@@ -188,12 +227,20 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                 break
             if t > clock.now_s():
                 clock.set(t)
+            if hook is not None:
+                hook(t, ctx)
+                services = [ctx.master, ctx.controller, ctx.hand]
             m_sample: MasterSample | None = None
             c_fresh = h_fresh = False
             for i, s in enumerate(services):
                 if abs(ticks[i] * periods[i] - t) < 1e-12 or ticks[i] * periods[i] < t:
-                    sample = s.tick(ticks[i] * periods[i])
+                    t_i = ticks[i] * periods[i]
                     ticks[i] += 1
+                    if s is None:  # a dead service (fault injection)
+                        if i == 0:
+                            m_sample = None
+                        continue
+                    sample = s.tick(t_i)
                     if tels is not None:
                         tels[i].emit(sample, s.events, h_svc.last_reading if i == 2 else None)
                     if i == 0:
@@ -208,8 +255,9 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                     progress(rows.n / n_master)
     finally:
         for s in services:
-            s.close()
-    return _result(cfg, duration_s, rows, m_svc, c_svc, h_svc)
+            if s is not None:
+                s.close()
+    return _result(cfg, duration_s, rows, m_svc, ctx.controller or c_svc, h_svc)
 
 
 def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: MasterService,
@@ -250,4 +298,4 @@ def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: Master
     )
 
 
-__all__ = ["LockstepResult", "run_lockstep"]
+__all__ = ["LockstepContext", "LockstepResult", "run_lockstep"]

@@ -1,14 +1,18 @@
 """One live service process: zenoh bus, backend, real-time loop, recording, dashboard.
 
 ``teleop run ROLE`` calls :func:`run_service`.  Order: open the bus (and declare the
-liveliness token) -> start the backend -> print ``ready <role>`` -> wait for the peers'
-liveliness -> tick at the role's rate until SIGINT/SIGTERM, end of stdin (when launched by
-``teleop up``) or ``duration_s`` -> close everything (backend safe/off, zenoh session, files).
+liveliness token) -> start the backend -> print ``ready <role>`` -> real-time priority when
+allowed -> wait for the peers' liveliness (the master and the hand also for the controller's
+first command, so the operator's grasp script starts only when the whole chain runs) ->
+garbage collector frozen -> tick at the role's rate until SIGINT/SIGTERM, end of stdin (when
+launched by ``teleop up``) or ``duration_s`` -> close everything (backend safe/off, zenoh
+session, files).
 """
 
 from __future__ import annotations
 
 import gc
+import importlib
 import json
 import signal
 import sys
@@ -45,21 +49,30 @@ class ServiceOptions:
     realtime: bool = True  # try SCHED_FIFO (the 1 kHz loops above the hand's)
 
 
-def build_service(role: str, cfg: TeleopConfig, bus: Any) -> Any:
-    """The service shell for ``role`` on ``bus`` with the configured backend."""
+def build_backend(role: str, cfg: TeleopConfig) -> Any:
+    """The configured device backend of ``role`` (None for the controller)."""
     from services.factory import build_hand, build_master
 
     if role == "master":
+        return build_master(cfg)
+    if role == "hand":
+        return build_hand(cfg)
+    return None
+
+
+def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any) -> Any:
+    """The service shell for ``role`` on ``bus`` around ``backend``."""
+    if role == "master":
         from services.master_service import MasterService
 
-        return MasterService(cfg, bus, build_master(cfg))
+        return MasterService(cfg, bus, backend)
     if role == "controller":
         from services.controller_service import ControllerService
 
         return ControllerService(cfg, bus)
     from services.hand_service import HandService
 
-    return HandService(cfg, bus, build_hand(cfg))
+    return HandService(cfg, bus, backend)
 
 
 def _dashboard_stream(opts: ServiceOptions) -> Any:
@@ -124,27 +137,37 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
             loop.stop()
 
         threading.Thread(target=watch, daemon=True).start()
-    bus = ZenohBus.from_config(role, cfg, clock=clock)
     telemetry: Telemetry | None = None
+    bus: Any = None
+    backend: Any = None
     svc: Any = None
     stats: LoopStats | None = None
     try:
-        svc = build_service(role, cfg, bus)
-        svc.start()
+        # everything slow first (device start, imports, dashboard), the bus last: peers
+        # take this service's liveliness token as "ready to tick"
+        made = build_backend(role, cfg)
+        if made is not None:
+            made.start()
+        backend = made  # released at the end only once started
+        importlib.import_module(f"services.{role}_service")  # the shell's imports, now
         record = Path(opts.record_dir) / f"{role}.csv" if opts.record_dir else None
         meta = (("role", role), ("controller", cfg.controller.kind),
                 ("session", cfg.session.name), ("rate_hz", f"{rate:g}"))
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
                               cfg.dashboard.rate_hz, meta)
+        bus = ZenohBus.from_config(role, cfg, clock=clock)
+        svc = build_service(role, cfg, bus, backend)
         print(f"ready {role}", flush=True)
-        if not _wait_for_peers(bus, role, loop, opts.peer_timeout_s):
-            return 0 if loop.stop_event.is_set() else 1
-        tel = telemetry
-        is_hand = role == "hand"
+        # real-time priority already for the wait: on a busy machine a normal-priority
+        # process can take half a second to notice its peers
         priority = 20 if rate >= 100.0 else 10
         if opts.realtime and not try_realtime_priority(priority):
             print(f"{role}: no real-time priority (needs CAP_SYS_NICE); loop timing may "
                   "suffer on a busy machine", file=sys.stderr, flush=True)
+        if not _wait_for_peers(bus, role, loop, opts.peer_timeout_s):
+            return 0 if loop.stop_event.is_set() else 1
+        tel = telemetry
+        is_hand = role == "hand"
 
         def tick(t_s: float) -> None:
             sample = svc.tick(t_s)
@@ -173,9 +196,12 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
     finally:
         try:
             if svc is not None:
-                svc.close()
+                svc.close()  # safe state / force off, then the backend is released
+            elif backend is not None:
+                backend.close()
         finally:
-            bus.close()
+            if bus is not None:
+                bus.close()
             if telemetry is not None:
                 telemetry.close()
             if stats is not None and opts.stats_path:

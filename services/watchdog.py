@@ -39,6 +39,8 @@ class WatchdogState:
 def watchdog_step(state: WatchdogState, p: WatchdogParams, t_s: float, got_valid: bool,
                   peer_alive: bool, dt_s: float) -> WatchdogState:
     """Advance the watchdog by one tick at ``t_s``."""
+    if got_valid and peer_alive and state.gain >= 1.0 and not state.tripped:
+        return WatchdogState(last_valid_t_s=t_s, tripped=False, gain=1.0, trips=state.trips)
     if not p.enabled:
         return replace(state, last_valid_t_s=t_s if got_valid else state.last_valid_t_s,
                        tripped=False, gain=1.0)

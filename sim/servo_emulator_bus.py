@@ -79,6 +79,7 @@ class ServoBusEmulator:
         self.physics = physics
         self.counters = BusCounters()
         self.faults = faults
+        self._drives: list | None = None  # cached physics commands; None after any write
         self._sync_senses()
 
     # ---- faults (may be changed while running: tests switch them on and off)
@@ -97,16 +98,22 @@ class ServoBusEmulator:
             if s.dxl_id in faults.overheat_ids:
                 bits |= T.P1_ERR_OVERHEAT if self.protocol == 1 else T.P2_HW_OVERHEAT
             s.hw_error = bits
+        self._stale = True  # registers (temperature, hardware error status) follow
 
     # ---- physics
     def step(self, dt_s: float) -> None:
         """Advance the physics by ``dt_s`` under the present control tables."""
-        self.physics.step([s.drive() for s in self.servos], dt_s)
-        self._sync_senses()
+        if self._drives is None:
+            self._drives = [s.drive() for s in self.servos]
+        self.physics.step(self._drives, dt_s)
+        self._stale = True
 
     def _sync_senses(self) -> None:
+        """Copy the physics' measurements into the present-value registers."""
         for servo, sense in zip(self.servos, self.physics.sense(), strict=True):
             servo.sense(sense)
+        self._stale = False
+        self._drives = None  # an alarm shutdown may have switched the torque off
 
     # ---- packets
     def _servo(self, dxl_id: int) -> EmulatedServo | None:
@@ -117,6 +124,9 @@ class ServoBusEmulator:
 
     def handle(self, pkt: Packet) -> list[Reply]:
         """The replies to one instruction packet."""
+        if self._stale:
+            self._sync_senses()
+        self._drives = None
         c = self.counters
         c.packets += 1
         c.by_instruction[pkt.instruction] = c.by_instruction.get(pkt.instruction, 0) + 1

@@ -170,20 +170,26 @@ class FingerServoPhysics:
                                   torque_limit=d.torque_limit if d.torque_on else 0.0)
             self.states[i] = fm.finger_step(self.states[i], cmd, self.params, self.obj,
                                             self.effects, dt_s)
-        self._outs = [fm.finger_outputs(s, self.params, self.obj, self.effects)
-                      for s in self.states]
+        self._outs = []  # computed when next sensed (finger_outputs is as costly as a step)
         for servo, d in zip(self.extra, drives[self.n_fingers:], strict=True):
             servo.step(d, dt_s)
 
+    def _outputs(self) -> list[Any]:
+        if not self._outs:
+            self._outs = [self._fm.finger_outputs(s, self.params, self.obj, self.effects)
+                          for s in self.states]
+        return self._outs
+
     def sense(self) -> tuple[ServoSense, ...]:
+        outs = self._outputs()
         out = [ServoSense(self.homes[i] + self.inv[i] * o.motor_angle_rad,
                           self.inv[i] * o.motor_velocity_rad_s, o.motor_load_units)
-               for i, o in enumerate(self._outs)]
+               for i, o in enumerate(outs)]
         return tuple(out) + tuple(s.sense() for s in self.extra)
 
     def proximal_rad(self) -> tuple[float, ...]:
         """The fingers' true proximal angles (for tests; not on the servo bus)."""
-        return tuple(o.proximal_rad for o in self._outs)
+        return tuple(o.proximal_rad for o in self._outputs())
 
 
 def build_physics(homes_rad: Sequence[float], inversions: Sequence[int], object_cfg: Any = None,

@@ -31,6 +31,7 @@ from sim.servo_emulator_physics import build_physics
 from teleop.devices import dynamixel_tables as T
 
 MAX_CATCH_UP_S = 0.05  # physics time dropped when the loop falls further behind than this
+STEPS_PER_WAKE = 5  # physics steps at most between two looks at the port
 
 
 def make_bus_emulator(protocol: int = 1, ids: Sequence[int] = (1, 2, 3, 4),
@@ -74,12 +75,20 @@ class PtyServoEmulator:
         self.path = os.ttyname(self._slave)
         return self.path
 
-    def _advance(self, now: float) -> None:
+    def _advance(self, now: float, max_steps: int) -> None:
+        """Step the physics towards ``now``, at most ``max_steps`` steps (replies come first).
+
+        When the machine cannot keep up, physics time falls behind; beyond
+        ``MAX_CATCH_UP_S`` the lag is dropped (the physics then runs slower than real time;
+        ``dropped_time_s`` counts it).
+        """
         lag = now - self._t_phys
         if lag > MAX_CATCH_UP_S:
             self.dropped_time_s += lag - MAX_CATCH_UP_S
             self._t_phys = now - MAX_CATCH_UP_S
-        while self._t_phys + self.dt_s <= now:
+        for _ in range(max_steps):
+            if self._t_phys + self.dt_s > now:
+                return
             self.bus.step(self.dt_s)
             self._t_phys += self.dt_s
 
@@ -90,30 +99,36 @@ class PtyServoEmulator:
         reader = PacketReader(self.bus.protocol)
         t0 = self._t_phys = time.monotonic()
         while not self._stop.is_set():
-            if duration_s is not None and time.monotonic() - t0 >= duration_s:
+            now = time.monotonic()
+            if duration_s is not None and now - t0 >= duration_s:
                 return
+            wait = max(0.0, self._t_phys + self.dt_s - now)
             try:
-                ready, _, _ = select.select([self._master], [], [], self.dt_s)
+                ready, _, _ = select.select([self._master], [], [], wait)
             except (OSError, ValueError):  # closed by vanish()
                 return
             with self.lock:
-                self._advance(time.monotonic())
-                if not ready:
-                    continue
-                try:
-                    data = os.read(self._master, 4096)
-                except BlockingIOError:
-                    continue
-                except OSError:
+                if ready and not self._answer(reader):
                     return
-                for pkt in reader.feed(data):
-                    for reply in self.bus.handle(pkt):
-                        if reply.delay_s > 0:
-                            time.sleep(reply.delay_s)
-                        try:
-                            os.write(self._master, reply.data)
-                        except OSError:
-                            return
+                self._advance(time.monotonic(), 1 if ready else STEPS_PER_WAKE)
+
+    def _answer(self, reader: PacketReader) -> bool:
+        """Read what the driver sent and answer it; False when the pty is gone."""
+        try:
+            data = os.read(self._master, 4096)
+        except BlockingIOError:
+            return True
+        except OSError:
+            return False
+        for pkt in reader.feed(data):
+            for reply in self.bus.handle(pkt):
+                if reply.delay_s > 0:
+                    time.sleep(reply.delay_s)
+                try:
+                    os.write(self._master, reply.data)
+                except OSError:
+                    return False
+        return True
 
     def _run(self, duration_s: float | None) -> None:
         try:

@@ -53,6 +53,7 @@ class DiagnoseOptions:
     fit_rate_hz: float = 250.0
     max_nfev: int = 8
     screen_top: int = 3
+    screen_above: int = 7             # screen candidates by equation error above this many
     noise_factor: float = 1.5         # residual rms below this many noise levels: stop adding
 
 
@@ -150,15 +151,22 @@ def _decimate(t: Array, u: Array | None, y: Array, rate_hz: float) -> Segment:
     return Segment(td, ud, yd)
 
 
+def _contiguous(ts: Sequence[Array]) -> Array:
+    """Segment time bases laid end to end (the first keeps its own times)."""
+    if len(ts) == 1:
+        return ts[0]
+    out, off = [], float(ts[0][0])
+    for t in ts:
+        out.append(t - t[0] + off)
+        off = float(out[-1][-1] + (t[1] - t[0]))
+    return np.concatenate(out)
+
+
 def _concat_ee(sigs: Sequence[EESignals]) -> EESignals:
     if len(sigs) == 1:
         return sigs[0]
-    ts, off = [], 0.0
-    for s in sigs:
-        ts.append(s.t - s.t[0] + off)
-        off = ts[-1][-1] + (s.t[1] - s.t[0])
     u = None if sigs[0].u is None else np.concatenate([s.u for s in sigs])  # type: ignore[misc]
-    return EESignals(np.concatenate(ts), np.concatenate([s.x for s in sigs]),
+    return EESignals(_contiguous([s.t for s in sigs]), np.concatenate([s.x for s in sigs]),
                      np.concatenate([s.v for s in sigs]), np.concatenate([s.a for s in sigs]),
                      u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
 
@@ -168,10 +176,9 @@ def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple
     z = fit.value(f"effect:{name}")
     sz = fit.std(f"effect:{name}")
     val = cand.to_effect_value(name, z, data.scales, data.max_dt_s)
-    if name == "series_compliance":
+    std = sz
+    if name == "series_compliance":  # fitted as compliance z = 1/k_s
         std = sz / z ** 2 if z > 0 else math.inf
-    else:
-        std = sz
     params: list[tuple[str, float]] = [(name, val)]
     stds: list[tuple[str, float]] = [(name, std)]
     if name == "stiction":
@@ -226,19 +233,18 @@ def _ee_start(sig: EESignals, nominal: AxisNominal, current: ModelFit, name: str
 def _best_start(data: FitData, nominal: AxisNominal, current: ModelFit, name: str,
                 sig: EESignals, fixed_inertia: float) -> dict[str, float]:
     """The better of a grid scan from the current fit and an equation-error start."""
-    z0 = scan_effect(data, current, name)
-    starts = [{**current.as_dict(), f"effect:{name}": z0}]
+    scan = scan_effect(data, current, name)
+    starts = [{**current.as_dict(), **scan}]
     ee = _ee_start(sig, nominal, current, name, fixed_inertia, data.scales)
     if ee is not None:
         starts.append(ee)
     if len(starts) == 1:
         return starts[0]
-    names = current.names[:-2 * len(data.segments)] + (f"effect:{name}",) + data.state_names()
     y = data.y
     best, best_s = math.inf, starts[0]
     for st in starts:
-        th = tuple(st.get(n, 0.0) for n in names)
-        r = simulate(names, th, data) - y
+        names = tuple(st)
+        r = simulate(names, tuple(st.values()), data) - y
         rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
         if rss < best:
             best, best_s = rss, st
@@ -260,6 +266,11 @@ def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnos
         for name in remaining:
             start = _best_start(data, nominal, current, name, sig, fixed_inertia)
             f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
+            z_neutral = cand.neutral(name)
+            if f.rss > current.rss and math.isfinite(z_neutral):
+                # a worse local optimum: start again from the current model itself
+                f = fit_model(data, nominal, {**current.as_dict(), f"effect:{name}": z_neutral},
+                              current.effects + (name,), opts.max_nfev)
             fits.append((current.bic - f.bic, name, f))
         fits.sort(key=lambda x: -x[0])
         if not chosen:
@@ -268,13 +279,14 @@ def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnos
         for dbic, name, f in fits:
             if dbic < opts.min_delta_bic:
                 break
+            f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
+            dbic = current.bic - f.bic
             z, sz = f.value(f"effect:{name}"), f.std(f"effect:{name}")
-            if not abs(z - cand.neutral(name)) > 2.0 * sz:
+            if dbic < opts.min_delta_bic or not abs(z - cand.neutral(name)) > 2.0 * sz:
                 continue
             gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
             if gain < opts.min_holdout_gain:
                 continue
-            f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
             p, s = _effect_params(name, f, data)
             chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
             current = f
@@ -387,7 +399,6 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
 
     nom_fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
     nom_nrmse = nrmse(data.y, nom_fit.y_fit)
-    print("DBG nominal rms/noise", math.sqrt(nom_fit.rss / nom_fit.n) / noise)
     mode = opts.analysis
     if mode == "auto":
         if nom_nrmse < OE_DRIFT_NRMSE:
@@ -399,11 +410,12 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     else:
         reason = "chosen by --analysis"
 
-    t_all = np.concatenate([s.t for s in segs])
+    t_all = _contiguous([s.t for s in segs])
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
     if mode == "output-error":
-        screened = _screen(sig, nominal, names, fixed_inertia, scales, opts.screen_top)
+        screened = (_screen(sig, nominal, names, fixed_inertia, scales, opts.screen_top)
+                    if len(names) > opts.screen_above else names)
         final, chosen, ranking = _select_oe(data, nominal, nom_fit, opts, screened, sig,
                                             fixed_inertia, noise)
         r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
@@ -435,7 +447,16 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         signals = {"position": sig.x}
         if sig.u is not None:
             signals["input"] = sig.u
-    noise_ee = 1.4826 * float(np.median(np.abs(ee_fin - np.median(ee_fin))))
+    edge = np.zeros(len(sig.t), bool)  # filter transients at the ends of every segment
+    m = int(3 * sig.fs_hz / sig.cutoff_hz)
+    start_i = 0
+    for s_ in sigs:
+        edge[start_i: start_i + m] = True
+        edge[start_i + len(s_.t) - m: start_i + len(s_.t)] = True
+        start_i += len(s_.t)
+    ee_nom = np.where(edge, 0.0, ee_nom)
+    ee_fin = np.where(edge, 0.0, ee_fin)
+    noise_ee = 1.4826 * float(np.median(np.abs(ee_fin[~edge] - np.median(ee_fin[~edge]))))
     windows = locate_windows(sig.t, ee_nom, noise_ee, conds)
     yy = data.y if mode == "output-error" else sig.x
     stats_b = analyse_residual(r_before, yy, signals)

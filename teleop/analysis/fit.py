@@ -102,7 +102,8 @@ def build(names: tuple[str, ...], theta: Array | tuple[float, ...], data: FitDat
     p = AxisParams(inertia=vals.get("inertia", data.fixed_inertia),
                    viscous=vals.get("viscous", 0.0), stiffness=vals.get("stiffness", 0.0),
                    gravity=vals.get("gravity", 0.0), coulomb=vals.get("coulomb", 0.0),
-                   offset=vals.get("offset", 0.0), stribeck_velocity=data.stribeck_velocity)
+                   offset=vals.get("offset", 0.0),
+                   stribeck_velocity=vals.get("stribeck_velocity", data.stribeck_velocity))
     eff = EffectSet()
     for name, z in vals.items():
         if name.startswith("effect:"):
@@ -128,6 +129,8 @@ def _bounds(name: str, nominal: AxisNominal, data: FitData) -> tuple[float, floa
         return cand.bounds(name[7:], data.scales)
     if name.startswith(("x0_", "v0_")):
         return -math.inf, math.inf
+    if name == "stribeck_velocity":
+        return 0.002 * data.scales.velocity, 0.5 * data.scales.velocity
     return nominal.bounds(name)
 
 
@@ -137,6 +140,8 @@ def _scale(name: str, start: float, data: FitData) -> float:
         return s.position
     if name.startswith("v0_"):
         return s.velocity
+    if name == "stribeck_velocity":
+        return 0.05 * s.velocity
     if name == "effect:dead_time" or name == "effect:actuator_lag":
         return 0.05
     if name == "effect:actuator_gain":
@@ -163,8 +168,10 @@ def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
     ``mask`` (boolean on the fit grid) restricts the samples the fit sees (held-out checks).
     """
     names = tuple(free_terms(nominal, data.has_input)) + tuple(
-        f"effect:{e}" for e in effects) + data.state_names()
-    x_start = np.array([start.get(n, 0.0) for n in names], float)
+        f"effect:{e}" for e in effects) + (("stribeck_velocity",) if "stiction" in effects
+                                           else ()) + data.state_names()
+    defaults = {"stribeck_velocity": data.stribeck_velocity}
+    x_start = np.array([start.get(n, defaults.get(n, 0.0)) for n in names], float)
     lo = np.array([_bounds(n, nominal, data)[0] for n in names])
     hi = np.array([_bounds(n, nominal, data)[1] for n in names])
     x_start = np.array([_inside(v, a, b) for v, a, b in zip(x_start, lo, hi, strict=True)])
@@ -187,27 +194,40 @@ def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
     rss = float(r[sel] @ r[sel])
     n = int(sel.sum())
     jac = res.jac
+    near = (res.x - lo < 1e-3 * xs) | (hi - res.x < 1e-3 * xs)
+    free = (res.active_mask == 0) & ~near  # parameters held at a bound are not free to vary
+    sigma = np.zeros(len(names))
     try:
-        s2 = rss / max(n - len(names), 1)
-        cov = np.linalg.pinv(jac.T @ jac) * s2
-        sigma = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        s2 = rss / max(n - int(free.sum()), 1)
+        jf = jac[:, free]
+        cov = np.linalg.pinv(jf.T @ jf) * s2
+        sigma[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     except (np.linalg.LinAlgError, ValueError):
-        sigma = np.full(len(names), math.nan)
+        sigma[:] = math.nan
     return ModelFit(tuple(effects), names, tuple(float(v) for v in res.x),
                     tuple(float(v) for v in sigma), rss, n, y_fit)
 
 
-def scan_effect(data: FitData, base: ModelFit, name: str) -> float:
-    """The grid start of effect ``name`` with the lowest error, other parameters at ``base``."""
-    k = 2 * len(data.segments)
-    names = base.names[:-k] + (f"effect:{name}",) + base.names[-k:]
-    best, best_z = math.inf, 0.0
+def scan_effect(data: FitData, base: ModelFit, name: str) -> dict[str, float]:
+    """Grid start of effect ``name`` with the lowest error, other parameters at ``base``.
+
+    Returns the start values to add (``effect:NAME``, and the Stribeck velocity for stiction).
+    """
+    key = f"effect:{name}"
+    vs_grid: tuple[float | None, ...] = (None,)
+    if name == "stiction":
+        vs_grid = tuple(f * data.scales.velocity for f in (0.01, 0.03, 0.1))
+    best, best_start = math.inf, {key: cand.start_grid(name, data.scales)[0]}
     y_meas = data.y
-    for z in cand.start_grid(name, data.scales):
-        th = base.theta[:-k] + (z,) + base.theta[-k:]
-        ys = simulate(names, th, data)
-        r = ys - y_meas
-        rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
-        if rss < best:
-            best, best_z = rss, z
-    return best_z
+    base_d = base.as_dict()
+    for vs in vs_grid:
+        for z in cand.start_grid(name, data.scales):
+            st = {key: z} if vs is None else {key: z, "stribeck_velocity": vs}
+            d = {**base_d, **st}
+            names = tuple(d)
+            ys = simulate(names, tuple(d.values()), data)
+            r = ys - y_meas
+            rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
+            if rss < best:
+                best, best_start = rss, st
+    return best_start

@@ -82,6 +82,7 @@ class RunSignals:
     limited_count: int = 0
     steps: int = 0
     dropped_messages: int = 0
+    settle_s: float = 0.0  # from here on the operator holds still and the loop has closed
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,6 +98,7 @@ class StabilityCriteria:
     floor_fraction: float = 0.005
     energy_tol_j: float = 1e-6
     energy_rel_tol: float = 1e-6
+    min_observe_s: float = 1.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -171,13 +173,36 @@ def _window(n: int, frac: tuple[float, float]) -> slice:
     return slice(min(a, n - 1), max(b, min(a, n - 1) + 1))
 
 
+def _detrend(x: Array) -> Array:
+    if len(x) < 2:
+        return x - np.mean(x) if len(x) else x
+    k = np.arange(len(x), dtype=float)
+    return x - np.polyval(np.polyfit(k, x, 1), k)
+
+
 def oscillation_metrics(t_s: Array, x: Array, scale: float,
-                        c: StabilityCriteria = StabilityCriteria()) -> OscillationMetrics:
-    """Early/late oscillation RMS and high-frequency share of ``x`` (see module doc)."""
-    xu, dt = _uniform(np.asarray(t_s, float), np.asarray(x, float))
-    hp = highpass(xu, dt, c.highpass_hz)
+                        c: StabilityCriteria = StabilityCriteria(),
+                        settle_s: float = 0.0) -> OscillationMetrics:
+    """Early/late oscillation RMS and high-frequency share of ``x`` (see module doc).
+
+    With ``settle_s > 0`` (the operator holds still from then on) the part after ``settle_s``
+    is split into an early and a late half, each detrended by a straight line (slow settling
+    is not oscillation); otherwise the run is high-passed and windowed by fractions.
+    """
+    t = np.asarray(t_s, float)
+    if settle_s > 0 and t[-1] - settle_s >= c.min_observe_s:
+        xu, dt = _uniform(t, np.asarray(x, float))
+        tu = t[0] + dt * np.arange(len(xu))
+        seg = xu[tu >= settle_s]
+        half = len(seg) // 2
+        early, late = _detrend(seg[:half]), _detrend(seg[half:])
+        hp = _detrend(seg)
+    else:
+        xu, dt = _uniform(t, np.asarray(x, float))
+        hp = highpass(xu, dt, c.highpass_hz)
+        n = len(hp)
+        early, late = hp[_window(n, c.early_window)], hp[_window(n, c.late_window)]
     n = len(hp)
-    early, late = hp[_window(n, c.early_window)], hp[_window(n, c.late_window)]
     early_rms = float(np.sqrt(np.mean(early**2)))
     late_rms = float(np.sqrt(np.mean(late**2)))
     spec = np.abs(np.fft.rfft(hp)) ** 2
@@ -220,7 +245,7 @@ def classify_run(s: RunSignals, c: StabilityCriteria = StabilityCriteria()) -> R
         reasons.append("non-finite signal")
     else:
         for name, (x, scale) in osc_signals.items():
-            m = oscillation_metrics(t, np.asarray(x, float), scale, c)
+            m = oscillation_metrics(t, np.asarray(x, float), scale, c, s.settle_s)
             osc_index = max(osc_index, m.late_fraction)
             growth = max(growth, m.growth if math.isfinite(m.growth) else 1e9)
             hf = max(hf, m.hf_power_fraction)

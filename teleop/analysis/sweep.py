@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from teleop.analysis.stability import RunMetrics, RunSignals, StabilityCriteria, classify_run
+from teleop.analysis.sweep_signals import round_trip_s, settle_time_s
 from teleop.config import TeleopConfig
 from teleop.errors import UserInputError
 
@@ -118,6 +119,18 @@ def point_config(cfg: TeleopConfig, p: SweepPoint) -> TeleopConfig:
                    session=replace(cfg.session, seed=p.seed))
 
 
+def point_duration_s(cfg: TeleopConfig, duration_s: float) -> float:
+    """``duration_s``, lengthened so that two round trips plus a second follow the settling.
+
+    A long delay makes a slow loop: its oscillation can only be told from a transient after
+    a few round trips.
+    """
+    settle = settle_time_s(cfg)
+    if settle <= 0:
+        return duration_s
+    return max(duration_s, settle + 2.0 * round_trip_s(cfg) + 1.0)
+
+
 def _point_seed(seed: int, ci: int, di: int, li: int) -> int:
     return (seed * 1_000_003 + ci * 10_007 + di * 101 + li * 7) % (2**31 - 1)
 
@@ -136,7 +149,8 @@ def decimate(s: RunSignals, rate_hz: float = 200.0) -> RunSignals:
 def _run_one(runner: PointRunner, cfg: TeleopConfig, point: SweepPoint, duration_s: float,
              criteria: StabilityCriteria, refine: bool, keep: bool = False) -> SweepRun:
     t0 = time.perf_counter()
-    signals = runner(point_config(cfg, point), duration_s)
+    pcfg = point_config(cfg, point)
+    signals = runner(pcfg, point_duration_s(pcfg, duration_s))
     metrics = classify_run(signals, criteria)
     return SweepRun(point, metrics, time.perf_counter() - t0, refine,
                     decimate(signals) if keep else None)

@@ -30,7 +30,7 @@ from teleop.config import TeleopConfig
 Array = NDArray[np.float64]
 
 __all__ = ["signals_from_lockstep", "signals_from_columns", "fill_nan", "measured_force_n",
-           "path_delays_s"]
+           "path_delays_s", "round_trip_s", "settle_time_s"]
 
 
 def fill_nan(x: Array, before: float | None = None) -> Array:
@@ -69,6 +69,25 @@ def path_delays_s(cfg: TeleopConfig) -> tuple[float, float]:
     ch_back = ch.delay_s if ch.backward_delay_s is None else ch.backward_delay_s
     mc_back = mc.delay_s if mc.backward_delay_s is None else mc.backward_delay_s
     return ch.delay_s, ch_back + mc_back
+
+
+def round_trip_s(cfg: TeleopConfig) -> float:
+    """Configured round trip master->hand->master plus the hand's sample-and-hold period."""
+    mc = cfg.links.master_controller
+    fwd, back = path_delays_s(cfg)
+    return mc.delay_s + fwd + back + 1.0 / cfg.hand.state_rate_hz
+
+
+def settle_time_s(cfg: TeleopConfig) -> float:
+    """When the virtual operator holds still and the loop has closed around the grasp.
+
+    The end of the operator's closing ramp plus one round trip; 0 (unknown) when the
+    operator repeats its script or is not the virtual one.
+    """
+    v = cfg.master.virtual
+    if cfg.master.backend != "virtual" or v.repeat:
+        return 0.0
+    return v.close_s + v.ramp_s + round_trip_s(cfg)
 
 
 def _finger(cfg: TeleopConfig) -> int:
@@ -116,6 +135,7 @@ def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
         limited_count=int(limited),
         steps=len(t),
         dropped_messages=int(dropped),
+        settle_s=settle_time_s(cfg),
     )
 
 

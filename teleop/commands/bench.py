@@ -23,6 +23,8 @@ BENCHES: dict[str, str] = {
     "transport": "teleop.transport.bench:bench_transport",
     "sim": "sim.bench:bench_sim",
     "loop": "services.bench:bench_loop",
+    "servo": "sim.servo_emulator_bench:bench_servo",
+    "diagnose": "teleop.analysis.bench:bench_diagnose",
 }
 
 

@@ -16,8 +16,12 @@ import sys
 from pathlib import Path
 from types import FrameType
 
-from teleop.commands.common import add_config_options, config_from_args, nonneg_float, \
-    positive_float
+from teleop.commands.common import (
+    add_config_options,
+    config_from_args,
+    nonneg_float,
+    positive_float,
+)
 from teleop.errors import UserInputError
 
 
@@ -116,12 +120,14 @@ def run(args: argparse.Namespace) -> int:
           f"{','.join(map(str, ids))}) on {link or path}; physics: {bus.physics.label}; "
           "Ctrl-C to stop", file=sys.stderr, flush=True)
     old = signal.signal(signal.SIGTERM, _stop)
+    old_int = signal.signal(signal.SIGINT, _stop)  # also when started with SIGINT ignored
     try:
         emu.serve(args.duration)
     except KeyboardInterrupt:
         pass
     finally:
         signal.signal(signal.SIGTERM, old)
+        signal.signal(signal.SIGINT, old_int)
         emu.stop()
         if link is not None and link.is_symlink():
             link.unlink()

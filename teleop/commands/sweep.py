@@ -26,6 +26,7 @@ from teleop.commands.common import (
 from teleop.errors import UserInputError
 
 if TYPE_CHECKING:
+    from teleop.analysis.direct_limit import DirectPrediction
     from teleop.analysis.stability import RunSignals
     from teleop.analysis.sweep import SweepRun
     from teleop.config import TeleopConfig
@@ -126,7 +127,6 @@ class _Progress:
 def lockstep_runner(cfg: TeleopConfig, duration_s: float) -> RunSignals:
     """One point through the services' lockstep runner (a picklable top-level function)."""
     from services.lockstep import run_lockstep
-
     from teleop.analysis.sweep_signals import signals_from_lockstep
 
     return signals_from_lockstep(run_lockstep(cfg, duration_s), cfg)
@@ -139,22 +139,51 @@ def live_runner(cfg: TeleopConfig, duration_s: float) -> RunSignals:
     return run_live_point(cfg, duration_s)
 
 
+def predict_direct(cfg: TeleopConfig) -> DirectPrediction:
+    """The linearised direct loop's limit, with the hand linearised on the simulated hand."""
+    from dataclasses import replace
+
+    from sim.operator import STYLES
+    from sim.params import JOINT_RATIO, default_finger_params, motor_damping_units
+    from sim.sim_hand import SimHand
+    from teleop.analysis.direct_limit import identify_hand, predict_direct_limit
+
+    fp = default_finger_params()
+    k_h, b_h = STYLES[cfg.master.virtual.style]
+    hand = SimHand(replace(cfg.hand, sim=replace(cfg.hand.sim, noise=False)), seed=0)
+    lin = identify_hand(cfg, hand, damping_units=motor_damping_units(fp, fp.max_effort_units),
+                        kp_units_per_rad=fp.kp_units_per_rad, operator_stiffness_n_per_m=k_h)
+    servo_k = fp.kp_units_per_rad / fp.units_per_n * fp.r_motor_m * JOINT_RATIO**2
+    return predict_direct_limit(cfg, lin, operator_stiffness_n_per_m=k_h,
+                                operator_damping_n_s_per_m=b_h, servo_stiffness_nm_per_rad=servo_k)
+
+
 def predicted_limits(cfg: TeleopConfig) -> tuple[tuple[tuple[str, float], ...], tuple[str, ...]]:
-    """The linearised loop's largest stable one-way delay of direct control (and notes)."""
-    try:
-        from teleop.control.stability_limit import predicted_max_stable_delay_s
-    except ImportError as exc:
-        return (), (f"no prediction: {exc}",)
-    return (("direct", float(predicted_max_stable_delay_s(cfg))),), ()
+    """The predicted largest stable one-way delay of direct control, and notes on it."""
+    if cfg.hand.backend != "sim":
+        return (), ("no prediction: the hand is linearised on the simulated hand only",)
+    from teleop.control.stability_limit import loop_gain
+
+    pred = predict_direct(cfg)
+    h, lp = pred.hand, pred.loop
+    note = (f"direct prediction: hand linearised at set-point {h.setpoint_rad:.3f} rad "
+            f"(pressure {h.pressure:.0f}): K0 {h.gain_pressure_per_rad:.0f} /rad, motor ratio "
+            f"{h.motor_ratio:.3f}, tau {h.tau_s:.3f} s (servo damping at full effort); "
+            f"loop DC gain {abs(loop_gain(lp, 1e-6)):.2f}; "
+            f"T_max {pred.round_trip_s * 1000:.1f} ms round trip minus "
+            f"{pred.intrinsic_s * 1000:.1f} ms intrinsic latency, halved")
+    return (("direct", pred.one_way_s),), (note,)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the sweep and report."""
     from teleop.analysis.sweep import format_table, run_delay_sweep
+    from teleop.config import apply_overrides
     from teleop.config.control import ControllerConfig
 
     cfg = config_from_args(args)
     sc = cfg.sweep
+    cfg = apply_overrides(apply_overrides(cfg, sc.scenario), args.overrides)  # --set wins
     known = ControllerConfig.__dataclass_fields__["kind"].metadata["choices"]
     delays = _floats(args.delays, sc.delays_s, "delays")
     losses = _floats(args.losses, sc.losses, "losses")

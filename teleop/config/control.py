@@ -11,11 +11,11 @@ from teleop.config.loader import param, section
 class TankConfig:
     """Energy tank and passivity-layer tuning (Franken et al. 2011)."""
 
-    initial_j: float = param(1.0, "initial energy of each port's tank (tdpa: each side's initial "
+    initial_j: float = param(10.0, "initial energy of each port's tank (tdpa: each side's initial "
                              "budget)", unit="J", lo=0.0, hi=100.0)
     desired_j: float = param(0.5, "tank level the master's level controller aims for", unit="J",
                              lo=0.0, hi=100.0)
-    max_j: float = param(5.0, "upper tank limit; surplus is dissipated", unit="J", lo=0.0,
+    max_j: float = param(20.0, "upper tank limit; surplus is dissipated", unit="J", lo=0.0,
                          hi=1000.0)
     min_j: float = param(0.01, "level below which the passivity layer stops paying for the "
                          "transparency layer's demands", unit="J", lo=0.0, hi=100.0)
@@ -47,8 +47,9 @@ class PortModelConfig:
                                    hi=10.0)
     force_max_n: float = param(8.0, "largest force the trigger displays", unit="N", lo=0.0,
                                hi=100.0)
-    servo_stiffness_nm_per_rad: float = param(13.0, "finger position servo stiffness at the "
-                                              "joint (upper bound; set-position modulation)",
+    servo_stiffness_nm_per_rad: float = param(5.0, "finger position servo stiffness at the "
+                                              "joint (upper bound; MX-28 P gain 1000 load units "
+                                              "per shaft rad, 5 units/N, 12.2 mm spool, x 1.42^2)",
                                               unit="N m/rad", lo=1e-3, hi=1e4)
     servo_damping_nm_s_per_rad: float = param(0.8, "finger servo damping at the joint (lower "
                                               "bound; dissipation credited to the hand tank)",
@@ -56,6 +57,10 @@ class PortModelConfig:
     servo_torque_max_nm: float = param(3.55, "finger servo torque limit at the joint (upper "
                                        "bound; MX-28 2.5 N m stall x 1.42)", unit="N m",
                                        lo=1e-3, hi=1e3)
+    servo_max_speed_rad_s: float = param(4.0, "set-points move at most this fast (the servo's "
+                                         "slew rate at the joint: MX-28 55 rpm / 1.42), so the "
+                                         "modelled servo spring matches the servo's own ramp",
+                                         unit="rad/s", lo=1e-3, hi=1e6)
 
 
 @dataclass(frozen=True, slots=True)

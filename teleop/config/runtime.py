@@ -49,6 +49,12 @@ class SweepConfig:
     controllers: tuple[str, ...] = param(("two-layer", "direct", "tdpa"), "controllers swept",
                                          choices=("two-layer", "direct", "tdpa"))
     duration_s: float = param(6.0, "simulated time per run", unit="s", lo=0.1, hi=3600.0)
+    scenario: tuple[str, ...] = param(
+        ("master.virtual.closed_fraction=0.6", "master.virtual.repeat=false",
+         "master.virtual.hold_s=100.0"),
+        "config overrides (key=value, applied before --set) that stage the sweep's grasp: one "
+        "close onto the object, then a hold whose contact force stays below the trigger's "
+        "force limit, so the loop is in its linear range where delay can destabilise it")
     workers: int = param(2, "lockstep runs in parallel (spawned processes)", lo=1, hi=64)
     refine_steps: int = param(5, "bisection runs narrowing each controller's largest stable "
                               "delay at zero loss", lo=0, hi=20)

@@ -57,6 +57,7 @@ class ControlParams:
     servo_stiffness_nm_per_rad: float
     servo_damping_nm_s_per_rad: float
     servo_torque_max_nm: float
+    servo_max_speed_rad_s: float
     energy_scale: float
     # transparency
     finger_enable: tuple[bool, ...]
@@ -82,6 +83,7 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
         force_max_n=pm.force_max_n, servo_stiffness_nm_per_rad=pm.servo_stiffness_nm_per_rad,
         servo_damping_nm_s_per_rad=pm.servo_damping_nm_s_per_rad,
         servo_torque_max_nm=pm.servo_torque_max_nm, energy_scale=t.energy_scale,
+        servo_max_speed_rad_s=pm.servo_max_speed_rad_s,
         finger_enable=tuple(tr.finger_enable) + (False,) * (3 - len(tr.finger_enable)),
         trigger_travel_m=tr.trigger_travel_m, open_angle_rad=tr.open_angle_rad,
         closed_angle_rad=tr.closed_angle_rad, map_exponent=tr.map_exponent,

@@ -42,7 +42,7 @@ class DirectLoopParams:
     damping_n_s_per_m: float = 6.0  # operator's finger damping
     stiffness_n_per_m: float = 500.0  # operator's finger stiffness
     position_gain_rad_per_m: float = 120.0  # G: 3 rad over 25 mm
-    servo_stiffness_nm_per_rad: float = 13.0  # K
+    servo_stiffness_nm_per_rad: float = 5.0  # K (MX-28 P gain at the joint)
     servo_damping_nm_s_per_rad: float = 0.87  # B (nominal, not the lower bound)
     contact_stiffness_nm_per_rad: float = 3.2  # k_e
     force_gain_n_per_nm: float = 10.0  # K_f

@@ -46,6 +46,7 @@ from teleop.control.two_layer import (
     make_commands,
     measure_hand,
     measure_master,
+    slew,
     transparency_commands,
 )
 from teleop.messages import FingerState, ForceCommand, HandCommand, HandState, MasterState
@@ -120,7 +121,7 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     led = s.ledger
     budget, diss = cap_tank(led.tank_j + inc, p.max_j)
-    want = desired_setpoints(command, y_prev)
+    want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s)
     y, dp, limited = pspm_project(want, y_prev, x, budget + d_j, k, tmax)
     e = dp - d_j
     took, gave = max(-e, 0.0), max(e, 0.0)

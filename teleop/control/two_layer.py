@@ -210,6 +210,12 @@ def desired_setpoints(command: HandCommand | None, hold: Triple) -> Triple:
     return sp  # type: ignore[return-value]
 
 
+def slew(want: Triple, prev: Triple, max_step: float) -> Triple:
+    """``want`` reached from ``prev`` by steps of at most ``max_step`` per finger."""
+    return tuple(b + min(max(a - b, -max_step), max_step)  # type: ignore[return-value]
+                 for a, b in zip(want, prev, strict=True))
+
+
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
     """One hand-side sample: dissipation credit, quanta, set-position modulation."""
@@ -222,7 +228,7 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     tank, diss = cap_tank(led.tank_j + d_j + inc, p.max_j)
     send = quantum_j(tank, p.reserve_j, p.transfer_fraction)
     tank -= send
-    want = desired_setpoints(command, y_prev)
+    want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s)
     y, dp, limited = pspm_project(want, y_prev, x, tank - p.min_j,
                                   p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm)
     tank -= dp

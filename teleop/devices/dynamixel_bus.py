@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 import os
+import select
 import termios
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -301,11 +302,20 @@ def _short(exc: BaseException) -> str:
 
 def _timed_port(sdk: Any, name: str, timeout_s: float) -> Any:
     """A PortHandler whose reply timeout is ``timeout_s`` plus the bytes' transmission time
-    (the stock one waits 2 x 16 ms for a USB latency timer)."""
+    (the stock one waits 2 x 16 ms for a USB latency timer) and whose reads do not spin."""
 
     class _TimedPort(sdk.PortHandler):  # type: ignore[misc, name-defined]
         def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802 - SDK name
             self.packet_start_time = self.getCurrentTime()
             self.packet_timeout = self.tx_time_per_byte * packet_length + 1000.0 * timeout_s
+
+        def readPort(self, length: int) -> bytes:  # noqa: N802 - SDK name
+            # The SDK polls with a zero timeout; wait up to 0.5 ms for bytes instead of
+            # spinning, which leaves the CPU to the servo side (an emulator on this machine).
+            data = self.ser.read(length)
+            if not data and length > 0:
+                select.select([self.ser.fileno()], [], [], 0.0005)
+                data = self.ser.read(length)
+            return data  # type: ignore[no-any-return]
 
     return _TimedPort(name)

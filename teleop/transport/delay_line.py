@@ -8,7 +8,9 @@ It models a one-way network path between a sender and a receiver:
   ``jitter_s`` and shape :data:`PARETO_SHAPE`, mean ``jitter_s / (shape - 1)``);
 * loss: ``bernoulli`` (independent, probability ``loss``) or ``gilbert`` (a two-state
   Gilbert-Elliott chain that loses every message in the bad state; mean loss rate ``loss``,
-  mean burst length ``burst_length``; stationary start);
+  mean burst length ``burst_length``; stationary start; bad->good probability
+  ``1/burst_length``, good->bad ``loss/(burst_length (1-loss))``, which must be <= 1: a
+  rate above ``burst_length/(burst_length+1)`` is clamped there);
 * duplication: with probability ``duplicate`` a second copy with its own delay;
 * reordering: on, messages are released in order of their sampled release times; off,
   release times are made non-decreasing (FIFO: nothing overtakes an earlier message).

@@ -115,6 +115,11 @@ class InProcessBus:
         """Release times of the next message of every received signal in flight."""
         return [t for i in self._inboxes.values() if (t := i.next_release_s()) is not None]
 
+    def next_release_s(self) -> float | None:
+        """Earliest release time among messages in flight to this view."""
+        times = self.next_release_times()
+        return min(times) if times else None
+
     def inject(self, signal: str, payload: bytes) -> None:
         """Put raw bytes on ``signal``'s link towards this view (tests: bad messages)."""
         check_receive(self.role, self._inboxes, signal).arrive(payload, self._hub.clock.now_s())

@@ -35,6 +35,7 @@ import zenoh
 
 from teleop.config.schema import TeleopConfig
 from teleop.config.transport import LinksConfig, ZenohConfig
+from teleop.errors import ConfigError
 from teleop.messages import Message
 from teleop.transport.bus import (
     BusStats,
@@ -60,6 +61,9 @@ from teleop.transport.safe_decoder import SafeDecoder
 
 _STAMP = struct.Struct("<d")
 TX_QUEUE_BATCHES = 16
+#: A send stamp older than this (or in the future, or not finite) is ignored: the delay
+#: then counts from the arrival.
+MAX_STAMP_AGE_S = 10.0
 
 
 def _drain(queue: collections.deque[tuple[bytes, float]]) -> Iterator[tuple[bytes, float]]:
@@ -108,10 +112,14 @@ class ZenohBus:
         self._clock = clock or MonotonicClock()
         self._shared_clock = shared_clock
         d_listen, d_connect = role_endpoints(role, zcfg)
-        conf = zenoh_config(zcfg.mode, d_listen if listen is None else listen,
-                            d_connect if connect is None else connect, zcfg.multicast_scouting)
-        for key, value in (extra_config or {}).items():  # zenoh key -> JSON5 (secure mode)
-            conf.insert_json5(key, value)
+        self.listen = list(d_listen if listen is None else listen)
+        self.connect = list(d_connect if connect is None else connect)
+        try:
+            conf = zenoh_config(zcfg.mode, self.listen, self.connect, zcfg.multicast_scouting)
+            for key, value in (extra_config or {}).items():  # zenoh key -> JSON5 (secure mode)
+                conf.insert_json5(key, value)
+        except zenoh.ZError as exc:
+            raise self._open_error(exc) from None
         self._decoder = SafeDecoder(f"zenoh:{role}")
         self._inboxes: dict[str, Inbox] = make_inboxes(role, links or LinksConfig(),
                                                        self._decoder, drop_stale)
@@ -121,7 +129,10 @@ class ZenohBus:
         self._alive: set[str] = set()
         self._reset_from: set[str] = set()
         self._closed = False
-        self._session = zenoh.open(conf)
+        try:
+            self._session = zenoh.open(conf)
+        except zenoh.ZError as exc:
+            raise self._open_error(exc) from None
         try:
             self._publishers = {
                 name: self._session.declare_publisher(
@@ -138,6 +149,13 @@ class ZenohBus:
         except BaseException:
             self._session.close()
             raise
+
+    def _open_error(self, exc: Exception) -> ConfigError:
+        """A one-line user error for a zenoh session that cannot be set up."""
+        msg = str(exc).split(" at /", 1)[0].strip()
+        return ConfigError(f"zenoh ({self.role}): cannot open a session listening on "
+                           f"{self.listen or '[]'} and connecting to {self.connect or '[]'}: "
+                           f"{msg}")
 
     @classmethod
     def from_config(cls, role: str, cfg: TeleopConfig, **kwargs: object) -> ZenohBus:
@@ -162,7 +180,10 @@ class ZenohBus:
             if att is not None:
                 raw = att.to_bytes()
                 if len(raw) == _STAMP.size:
-                    sent = _STAMP.unpack(raw)[0]
+                    stamp = _STAMP.unpack(raw)[0]
+                    # trust only a plausible stamp (finite, not after arrival, recent)
+                    if now - MAX_STAMP_AGE_S <= stamp <= now:
+                        sent = stamp
             queue.append((sample.payload.to_bytes(), sent if self._shared_clock else now))
             self._data_event.set()
 

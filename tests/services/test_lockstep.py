@@ -102,3 +102,36 @@ def test_a_lockstep_run_can_be_logged_to_the_dashboard(tmp_path) -> None:  # noq
     found = {c.entity_path.lstrip("/") for c in RrdReader(out).stream()
              if not c.is_static and c.num_rows > 0}
     assert not [p for p in DASHBOARD_PATHS if p not in found]
+
+
+def test_default_backends_grasp_the_object_passively() -> None:
+    """Virtual operator + simulated hand (sim.sim_hand) with the default config."""
+    cfg = load_config(None, ["master.virtual.repeat=false"])
+    r = run_lockstep(cfg, 3.0, seed=0)
+    before = r.t_s < 0.5
+    closed = r.t_s > 2.0
+    assert r.pressure[before].max() < 20.0 < r.pressure[closed].max()
+    flex = r.proximal_rad + r.distal_rad
+    assert flex[closed].mean() > flex[before].mean() + 0.1
+    assert np.median(r.displayed_force_n[closed]) > 0.3
+    assert r.energy_generated_j == 0.0 and np.all(r.energy_margin_j >= -1e-9)
+
+
+def test_controller_death_mid_grasp_hand_holds_and_force_ramps_out() -> None:
+    from services.lockstep import LockstepContext
+
+    def kill_at_2s(t: float, ctx: LockstepContext) -> None:
+        if t >= 2.0 and ctx.controller is not None:
+            ctx.kill_controller()
+
+    cfg = load_config(None, ["master.virtual.repeat=false"])
+    r = run_lockstep(cfg, 3.0, seed=1, hand=FakeHand(contact_rad=CONTACT_RAD), hook=kill_at_2s)
+    after = r.t_s > 2.05
+    # the hand holds where it was (on the object) instead of opening or moving on
+    held = r.hand_setpoint_rad[after]
+    assert np.ptp(held, axis=0).max() < 1e-9
+    assert np.all(np.abs(r.proximal_rad[after] - CONTACT_RAD) < 0.02)
+    # the operator's force goes at once: liveliness lost
+    assert np.all(r.displayed_force_n[r.t_s > 2.01] == 0.0)
+    assert r.watchdog_trips >= 2
+    assert np.all(r.energy_margin_j >= -1e-9)

@@ -33,7 +33,7 @@ def initial_j(rec: Recording, store: str = "tank_j") -> float:
     port_in = c("port_in_j") if rec.has("port_in_j") else 0.0
     port_out = c("port_out_j") if rec.has("port_out_j") else 0.0
     init = (c(store) - port_in - c("received_j") + port_out + c("sent_j") + c("dissipated_j"))
-    assert np.ptp(init) < 1e-6  # the accounts balance at every sample
+    assert np.ptp(init) < 1e-5  # the accounts balance at every sample (CSV: 9 digits)
     return float(init[0])
 
 
@@ -87,24 +87,26 @@ def test_recordings_show_the_grasp_and_the_energy_balance(
     m = read_recording(rec_dir / "master.csv")
     c = read_recording(rec_dir / "controller.csv")
     h = read_recording(rec_dir / "hand.csv")
-    assert len(m) > 4500 and len(c) > 4500 and len(h) > 150  # 1 kHz, 1 kHz, 40 Hz for ~5 s
-    # the virtual operator closes the trigger (script: 0.5 s pause, 1 s close, 2 s hold)
+    assert len(m) > 4000 and len(c) > 4000 and len(h) > 150  # 1 kHz, 1 kHz, 40 Hz, ~5 s
+    # the virtual operator's script (from the master's first tick): wait 0.5 s, close over
+    # 1 s, hold 2 s, release over 1 s; it closes until the grasp pushes back
+    t0 = m.t_s[0]
     x = m.column("trigger_position_m")
-    assert x[m.t_s < m.t_s[0] + 0.4].max() == 0.0 and x.max() > 0.02
-    closed_t = m.t_s[x > 0.8 * x.max()]
-    t_close, t_end = closed_t[0], closed_t[-1]
+    before_m = m.t_s < t0 + 0.4
+    hold_m = (m.t_s > t0 + 1.8) & (m.t_s < t0 + 3.4)
+    assert x[before_m].max() == 0.0 and np.median(x[hold_m]) > 0.005
     # ... and the fingers close on the object: they flex and the tactile sensors load up
-    hold = (h.t_s > t_close) & (h.t_s < t_end)
-    start = h.t_s < m.t_s[0] + 0.5  # before the operator starts closing
+    before_h = h.t_s < t0 + 0.5
+    hold_h = (h.t_s > t0 + 1.8) & (h.t_s < t0 + 3.4)
+    assert before_h.sum() >= 5 and hold_h.sum() >= 40
     flex = h.column("proximal_angle_rad_f1") + h.column("distal_angle_rad_f1")
-    assert flex[hold].mean() > flex[start].mean() + 0.2
+    assert flex[hold_h].mean() > flex[before_h].mean() + 0.2
     pressure = np.max([h.column(f"pressure_f1_{j}") for j in range(9)], axis=0)
-    assert pressure[hold].max() > 20.0 and pressure[start].max() < 20.0
+    assert pressure[hold_h].min() > 20.0 and pressure[before_h].max() < 20.0
     # the operator feels it: force displayed while closed on the object, none before
     f = m.column("displayed_force_n")
-    held = (m.t_s > t_close + 0.5) & (m.t_s < t_end)
-    assert np.median(f[held]) > 0.5
-    assert np.abs(f[m.t_s < m.t_s[0] + 0.4]).max() < 0.2
+    assert np.median(f[hold_m]) > 0.5
+    assert np.abs(f[before_m]).max() < 0.2
     # energy: no tank negative; delivered at the ports <= initial + taken from the ports
     for r, store in ((m, "tank_j"), (h, "tank_j"), (c, "store_j")):
         assert r.column(store).min() >= -1e-9
@@ -168,3 +170,28 @@ def test_ctrl_c_stops_everything_within_2_s(tmp_path: Path) -> None:
     assert "Traceback" not in err
     for role in ("master", "controller", "hand"):  # each child closed its recording
         assert read_recording(tmp_path / f"{role}.csv").t_s.size > 10
+
+
+@pytest.mark.network
+def test_a_service_failing_at_start_up_fails_the_run_in_one_line() -> None:
+    port = free_port()
+    proc = teleop("up", "--duration", "2", "--dashboard", "off", "--set",
+                  "hand.backend=dynamixel", "--set", "hand.dynamixel.port=/dev/nonexistent",
+                  "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}",
+                  "--set", f"session.name=fail{port}", timeout=60)
+    assert proc.returncode == 1
+    assert "start-up failed: hand exited" in proc.stdout
+    assert "Traceback" not in proc.stderr
+    assert "/dev/nonexistent" in proc.stderr
+
+
+def test_omega7_without_its_sdk_is_a_one_line_error() -> None:
+    import importlib.util
+
+    if importlib.util.find_spec("forcedimension_core") is not None:
+        pytest.skip("the Force Dimension SDK is installed here")
+    proc = teleop("run", "master", "--set", "master.backend=omega7", "--duration", "1",
+                  timeout=60)
+    assert proc.returncode == 2
+    assert "pip install 'teleop[omega7]'" in proc.stderr
+    assert "Traceback" not in proc.stderr

@@ -52,8 +52,8 @@ def simulate_growth(p: DirectLoopParams, delay_s: float, t_end: float = 3.0) -> 
 
 @pytest.mark.parametrize("filter_hz", [20.0, None])
 def test_prediction_matches_linear_simulation(filter_hz: float | None) -> None:
-    p = DirectLoopParams(force_gain_n_per_nm=4.0, servo_damping_nm_s_per_rad=0.8,
-                         filter_hz=filter_hz)
+    p = DirectLoopParams(force_gain_n_per_nm=4.0, servo_stiffness_nm_per_rad=13.0,
+                         servo_damping_nm_s_per_rad=0.8, filter_hz=filter_hz)
     t_max = predicted_max_stable_delay_s(p)
     assert 0.005 < t_max < 0.1
     # the delayed round trip's phase at crossover reaches -pi exactly at t_max
@@ -77,8 +77,8 @@ def test_unstable_without_delay_gives_zero() -> None:
 
 
 def test_stiffer_contact_lowers_the_limit() -> None:
-    soft = DirectLoopParams(force_gain_n_per_nm=4.0, contact_stiffness_nm_per_rad=2.0,
-                            filter_hz=None)
+    soft = DirectLoopParams(force_gain_n_per_nm=4.0, servo_stiffness_nm_per_rad=13.0,
+                            contact_stiffness_nm_per_rad=2.0, filter_hz=None)
     stiff = replace(soft, contact_stiffness_nm_per_rad=6.0)
     assert predicted_max_stable_delay_s(stiff) < predicted_max_stable_delay_s(soft)
 

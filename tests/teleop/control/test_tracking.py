@@ -1,7 +1,8 @@
 """Transparency: the two-layer controller tracks like direct control at zero delay; direct
 control with delay into a stiff contact oscillates and generates energy, as predicted.
 
-Stated bound (scripted 4 s grasp into a contact, zero delay, no loss): the hand set-point and
+Stated bound (scripted 4 s grasp into a contact, zero delay, no loss, default tanks, a first-
+order servo with K = 13 N m/rad, B = 0.8 N m s/rad): the hand set-point and
 the displayed force of ``two-layer`` differ from ``direct`` by
 * RMS < 0.01 rad and < 0.02 N with the hand side at 1 kHz,
 * RMS < 0.05 rad and < 0.2 N with the hand side at 40 Hz (the stock driver's rate; the tank
@@ -9,6 +10,8 @@ the displayed force of ``two-layer`` differ from ``direct`` by
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,9 +22,14 @@ from teleop.control.interface import control_params
 from teleop.control.registry import CONTROLLERS
 from teleop.control.stability_limit import DirectLoopParams, predicted_max_stable_delay_s
 
+#: the servo of the test environment (and the passivity layer's model of it): a stiff,
+#: well-damped position servo
+SERVO = {"servo_stiffness_nm_per_rad": 13.0, "servo_damping_nm_s_per_rad": 0.8}
+
 
 def run(kind: str, sc: Scenario) -> Trace:
-    return run_loop(CONTROLLERS[kind], control_params(ControllerConfig(kind=kind)), sc)
+    p = replace(control_params(ControllerConfig(kind=kind)), **SERVO)
+    return run_loop(CONTROLLERS[kind], p, sc)
 
 
 def rms(a: np.ndarray) -> float:

@@ -187,3 +187,20 @@ def test_safe_decoder_counts_and_rate_limits_logs(caplog: pytest.LogCaptureFixtu
     with pytest.raises(AttributeError):
         snap.accepted = 5  # type: ignore[misc]
     assert dec.counts().count("malformed") == 50 and snap.rejected == 52
+
+
+@given(st.lists(st.one_of(st.binary(max_size=600), messages.map(encode),
+                          msgpack_values.map(lambda v: msgpack.packb(v, use_bin_type=True))),
+                max_size=20))
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_safe_decoder_never_raises_and_counts_everything(inputs: list[bytes]) -> None:
+    dec = SafeDecoder("fuzz", log_interval_s=1e9)
+    logging.getLogger("teleop.transport").disabled = True
+    try:
+        results = [dec.decode(b) for b in inputs]
+    finally:
+        logging.getLogger("teleop.transport").disabled = False
+    snap = dec.counts()
+    assert snap.accepted == sum(r is not None for r in results)
+    assert snap.accepted + snap.rejected == len(inputs)
+    assert {reason for reason, _ in snap.by_reason} <= set(REASONS)

@@ -6,14 +6,18 @@ Every wait has a deadline and every session is closed, so nothing can hang.
 
 from __future__ import annotations
 
+import math
 import statistics
+import struct
 import time
 from collections.abc import Callable, Iterator
 
 import pytest
 
 from teleop.config.transport import LinkConfig, LinksConfig
+from teleop.errors import ConfigError
 from teleop.messages import Header, MasterState
+from teleop.transport.bus import Received
 from teleop.transport.codec import encode
 from teleop.transport.keys import data_key
 from teleop.transport.peer import PeerProcess, free_tcp_endpoint
@@ -138,16 +142,28 @@ def test_bad_bytes_over_zenoh_are_counted_not_raised(endpoint: str) -> None:
         raw.put(key, b"\xc1\xc1")
         raw.put(key, b"x" * 5000)
         raw.put(key, encode(MasterState(Header(1, 0.0, 0.0), 0.01, 0.0)))
-        got: list[object] = []
+        for i, stamp in enumerate((math.nan, 1e300, -5.0)):  # implausible send stamps
+            raw.put(key, encode(MasterState(Header(2 + i, 0.0, 0.0), 0.01, 0.0)),
+                    attachment=struct.pack("<d", stamp))
+        got: list[Received] = []
 
-        def three_seen() -> bool:
+        def all_seen() -> bool:
             got.extend(ctrl.receive("master_state"))
-            return ctrl.stats().link("master_state").released == 3
+            return ctrl.stats().link("master_state").released == 6
 
-        wait_for(three_seen, 5.0, "the messages")
+        wait_for(all_seen, 5.0, "the messages")
     finally:
         raw.close()
         ctrl.close()
     st = ctrl.stats().rejects
-    assert len(got) == 1
+    assert [r.message.header.seq for r in got] == [1, 2, 3, 4]
+    assert all(0.0 <= r.delay_s < 1.0 for r in got)  # bad stamps: delay from arrival
     assert st.count("malformed") == 1 and st.count("too_large") == 1
+
+
+def test_unusable_endpoints_are_one_line_config_errors(master_bus: ZenohBus,
+                                                       endpoint: str) -> None:
+    for listen in ([endpoint], ["bogus"]):  # in use by master_bus; malformed
+        with pytest.raises(ConfigError, match="cannot open a session listening on") as info:
+            ZenohBus("hand", session="t", listen=listen, connect=[])
+        assert "\n" not in str(info.value)

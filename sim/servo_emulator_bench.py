@@ -1,0 +1,97 @@
+"""``teleop bench servo``: bus cycle time for four servos over the emulator's pty.
+
+One cycle is what the hand does per control tick: a synchronised goal write to four servos
+plus the state reads (Protocol 1.0: one READ per servo; Protocol 2.0: two SYNC_READs).  The
+emulator runs as a separate process (``teleop servo-emulator``), so the figures include the
+real pty round trips and dynamixel-sdk's own packet handling, but not the serial line's
+transmission time; that is reported separately for the ReFlex's 57142 baud.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+from teleop.devices import dynamixel_tables as T
+
+IDS = (1, 2, 3, 4)
+
+
+def start_emulator_process(protocol: int, extra: tuple[str, ...] = ()) -> tuple[Any, str]:
+    """Start ``teleop servo-emulator`` in a subprocess; returns (process, pty path)."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "teleop.cli", "servo-emulator", "--protocol", str(protocol),
+         *extra], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    assert proc.stdout is not None
+    path = proc.stdout.readline().strip()
+    if not path:
+        proc.kill()
+        proc.wait(timeout=5)
+        raise RuntimeError("servo emulator did not start")
+    return proc, path
+
+
+def stop_emulator_process(proc: Any) -> None:
+    """Stop an emulator started by :func:`start_emulator_process`."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=5)
+
+
+def wire_bytes_per_cycle(protocol: int, n: int = len(IDS)) -> int:
+    """Bytes on the serial line per cycle (instruction and status packets)."""
+    if protocol == 1:
+        sync_write = 8 + n * (1 + T.P1_GOAL_LEN)
+        reads = n * (8 + 6 + T.P1_STATE_LEN)
+        return sync_write + reads
+    sync_write = 14 + n * (1 + T.P2_GOAL_LEN)
+    sync_reads = (14 + n) + n * (11 + T.P2_STATE_LEN) + (14 + n) + n * (11 + 1)
+    return sync_write + sync_reads
+
+
+def _cycle_times_us(protocol: int, cycles: int) -> np.ndarray:
+    from teleop.devices.dynamixel_bus import DynamixelBus, Goal
+
+    proc, path = start_emulator_process(protocol)
+    bus = DynamixelBus(path, 57142 if protocol == 1 else 57600, float(protocol), IDS,
+                       retries=2, timeout_s=0.05)
+    try:
+        bus.open()
+        for i in IDS:
+            bus.write(i, "torque_enable", 1)
+        times = np.empty(cycles)
+        for k in range(cycles + 50):
+            goals = {i: Goal(100 + (k % 50), 0) for i in IDS}
+            t0 = time.perf_counter()
+            bus.write_goals(goals)
+            bus.read_states()
+            if k >= 50:
+                times[k - 50] = (time.perf_counter() - t0) * 1e6
+        return times
+    finally:
+        bus.close()
+        stop_emulator_process(proc)
+
+
+def bench_servo(cycles: int = 1000) -> dict[str, float]:
+    """Cycle-time figures for four servos, Protocol 1.0 and 2.0."""
+    out: dict[str, float] = {"servos": float(len(IDS)), "cycles": float(cycles)}
+    for protocol in (1, 2):
+        t = _cycle_times_us(protocol, cycles)
+        pre = f"p{protocol}_"
+        out[pre + "p50_us"] = float(np.percentile(t, 50))
+        out[pre + "p99_us"] = float(np.percentile(t, 99))
+        out[pre + "max_us"] = float(t.max())
+        out[pre + "cycles_per_s"] = float(1e6 / t.mean())
+        nbytes = wire_bytes_per_cycle(protocol)
+        out[pre + "wire_bytes_per_cycle"] = float(nbytes)
+        baud = 57142 if protocol == 1 else 57600
+        out[pre + f"wire_time_at_{baud}_baud_us"] = nbytes * 10 / baud * 1e6
+    return out
