@@ -1,7 +1,8 @@
 """``teleop bench servo``: bus cycle time for four servos over the emulator's pty.
 
 One cycle is what the hand does per control tick: a synchronised goal write to four servos
-plus the state reads (Protocol 1.0: one READ per servo; Protocol 2.0: two SYNC_READs).  The
+plus the state reads (Protocol 1.0: one READ per servo, or one BULK_READ; Protocol 2.0: two
+SYNC_READs: the state block and the hardware error status).  The
 emulator runs as a separate process (``teleop servo-emulator``), so the figures include the
 real pty round trips and dynamixel-sdk's own packet handling, but not the serial line's
 transmission time; that is reported separately for the ReFlex's 57142 baud.
@@ -45,8 +46,10 @@ def stop_emulator_process(proc: Any) -> None:
         proc.wait(timeout=5)
 
 
-def wire_bytes_per_cycle(protocol: int, n: int = len(IDS)) -> int:
+def wire_bytes_per_cycle(protocol: int, n: int = len(IDS), bulk: bool = False) -> int:
     """Bytes on the serial line per cycle (instruction and status packets)."""
+    if protocol == 1 and bulk:
+        return 8 + n * (1 + T.P1_GOAL_LEN) + (7 + 3 * n) + n * (6 + T.P1_STATE_LEN)
     if protocol == 1:
         sync_write = 8 + n * (1 + T.P1_GOAL_LEN)
         reads = n * (8 + 6 + T.P1_STATE_LEN)
@@ -56,12 +59,12 @@ def wire_bytes_per_cycle(protocol: int, n: int = len(IDS)) -> int:
     return sync_write + sync_reads
 
 
-def _cycle_times_us(protocol: int, cycles: int) -> np.ndarray:
+def _cycle_times_us(protocol: int, cycles: int, bulk: bool = False) -> tuple[np.ndarray, int]:
     from teleop.devices.dynamixel_bus import DynamixelBus, Goal
 
     proc, path = start_emulator_process(protocol)
     bus = DynamixelBus(path, 57142 if protocol == 1 else 57600, float(protocol), IDS,
-                       retries=2, timeout_s=0.05)
+                       retries=2, timeout_s=0.05, bulk_read=bulk)
     try:
         bus.open()
         for i in IDS:
@@ -74,23 +77,23 @@ def _cycle_times_us(protocol: int, cycles: int) -> np.ndarray:
             bus.read_states()
             if k >= 50:
                 times[k - 50] = (time.perf_counter() - t0) * 1e6
-        return times
+        return times, bus.failed_attempts
     finally:
         bus.close()
         stop_emulator_process(proc)
 
 
 def bench_servo(cycles: int = 1000) -> dict[str, float]:
-    """Cycle-time figures for four servos, Protocol 1.0 and 2.0."""
+    """Cycle-time figures for four servos: Protocol 1.0 (single READs and BULK_READ), 2.0."""
     out: dict[str, float] = {"servos": float(len(IDS)), "cycles": float(cycles)}
-    for protocol in (1, 2):
-        t = _cycle_times_us(protocol, cycles)
-        pre = f"p{protocol}_"
+    for protocol, bulk, pre in ((1, False, "p1_"), (1, True, "p1_bulk_"), (2, False, "p2_")):
+        t, failed = _cycle_times_us(protocol, cycles, bulk)
         out[pre + "p50_us"] = float(np.percentile(t, 50))
         out[pre + "p99_us"] = float(np.percentile(t, 99))
         out[pre + "max_us"] = float(t.max())
         out[pre + "cycles_per_s"] = float(1e6 / t.mean())
-        nbytes = wire_bytes_per_cycle(protocol)
+        out[pre + "failed_attempts"] = float(failed)
+        nbytes = wire_bytes_per_cycle(protocol, bulk=bulk)
         out[pre + "wire_bytes_per_cycle"] = float(nbytes)
         baud = 57142 if protocol == 1 else 57600
         out[pre + f"wire_time_at_{baud}_baud_us"] = nbytes * 10 / baud * 1e6

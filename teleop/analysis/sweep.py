@@ -220,6 +220,7 @@ def run_delay_sweep(
     predicted: Sequence[tuple[str, float]] = (),
     criteria: StabilityCriteria = StabilityCriteria(),
     keep_signals: bool = False,
+    refine_controllers: Sequence[str] | None = None,
 ) -> SweepResult:
     """Run every (controller, delay, loss) point; classify; bracket the largest stable delay."""
     if not delays_s or not losses or not controllers:
@@ -231,7 +232,8 @@ def run_delay_sweep(
     points = [SweepPoint(c, d, jitter_s, float(p), _point_seed(seed, ci, di, li))
               for ci, c in enumerate(controllers) for li, p in enumerate(losses)
               for di, d in enumerate(delays)]
-    total = len(points) + refine_steps * (1 if 0.0 in losses else 0) * len(controllers)
+    to_refine = [c for c in controllers if refine_controllers is None or c in refine_controllers]
+    total = len(points) + refine_steps * (1 if 0.0 in losses else 0) * len(to_refine)
     done_runs: list[SweepRun] = []
 
     def done(run: SweepRun) -> None:
@@ -243,8 +245,8 @@ def run_delay_sweep(
     try:
         runs = pool.map(_run_one, [(runner, cfg, p, duration_s, criteria, False, keep_signals)
                                    for p in points], done)
-        brackets = _refine(pool, runner, cfg, runs, controllers, losses, refine_steps,
-                           duration_s, jitter_s, seed, criteria, done)
+        brackets = _refine(pool, runner, cfg, runs, controllers, to_refine, losses,
+                           refine_steps, duration_s, jitter_s, seed, criteria, done)
     finally:
         pool.close()
     runs = runs + [r for r in done_runs if r.refine]
@@ -256,7 +258,8 @@ def run_delay_sweep(
 
 
 def _refine(pool: _Pool, runner: PointRunner, cfg: TeleopConfig, runs: list[SweepRun],
-            controllers: Sequence[str], losses: Sequence[float], steps: int, duration_s: float,
+            controllers: Sequence[str], to_refine: Sequence[str], losses: Sequence[float],
+            steps: int, duration_s: float,
             jitter_s: float, seed: int, criteria: StabilityCriteria,
             done: Callable[[SweepRun], None]) -> list[tuple[str, float, float]]:
     """Bisect each controller's stable/unstable bracket at zero loss, all controllers at once."""
@@ -266,7 +269,7 @@ def _refine(pool: _Pool, runner: PointRunner, cfg: TeleopConfig, runs: list[Swee
     brackets = {c: max_stable_delay(runs, c, loss0) for c in controllers}
     for step in range(steps):
         active = [c for c, (lo, hi) in brackets.items() if math.isfinite(hi) and
-                  not math.isnan(lo)]
+                  not math.isnan(lo) and c in to_refine]
         if not active:
             break
         jobs = []

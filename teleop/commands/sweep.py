@@ -205,7 +205,8 @@ def run(args: argparse.Namespace) -> int:
     result = run_delay_sweep(cfg, runner, delays, losses, controllers, mode=args.mode, seed=seed,
                              duration_s=duration, jitter_s=jitter, progress=progress,
                              workers=workers, refine_steps=refine, predicted=predicted,
-                             keep_signals=bool(args.rerun))
+                             keep_signals=bool(args.rerun),
+                             refine_controllers=[c for c, _ in predicted])
     progress.finish()
     if notes:
         from dataclasses import replace

@@ -58,6 +58,8 @@ class DynamixelConfig:
     max_failures: int = param(5, "consecutive bus failures before the hand goes safe", lo=1)
     retries: int = param(2, "retries of one failed bus transaction", lo=0, hi=100)
     timeout_s: float = param(0.02, "serial reply timeout", unit="s", lo=0.001, hi=5.0)
+    bulk_read: bool = param(False, "protocol 1.0: read all servos with one BULK_READ per cycle "
+                            "instead of one READ per servo")
     zeros_rad: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0), "calibration zero per motor: "
                                          "raw * scale / ratio at joint angle 0 (what the "
                                          "calibration routine saves)", unit="rad",

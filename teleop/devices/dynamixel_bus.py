@@ -7,8 +7,9 @@ registers behind one API.  dynamixel-sdk is imported when the bus is opened.
 
 Per cycle the bus does one synchronised goal write (GroupSyncWrite of goal position + moving
 speed) and a state read: Protocol 2.0 uses GroupSyncRead; Protocol 1.0 uses one READ per servo
-of the block present position .. present temperature, because GroupBulkRead is broken for 1.0
-in dynamixel-sdk 4.1 (a single READ also returns each servo's error byte).
+of the block present position .. present temperature (each reply carries the servo's error
+byte), or, with ``bulk_read=True``, one BULK_READ sent through the packet handler directly,
+because GroupBulkRead is broken for 1.0 in dynamixel-sdk 4.1.
 
 Example::
 
@@ -101,7 +102,7 @@ class DynamixelBus:
     """Servos on one serial port through dynamixel-sdk."""
 
     def __init__(self, port: str, baud_rate: int, protocol: float, ids: Sequence[int], *,
-                 retries: int = 2, timeout_s: float = 0.02) -> None:
+                 retries: int = 2, timeout_s: float = 0.02, bulk_read: bool = False) -> None:
         if protocol not in (1.0, 2.0):
             raise ValueError(f"protocol must be 1.0 or 2.0, got {protocol}")
         self.port_name = port
@@ -110,6 +111,7 @@ class DynamixelBus:
         self.ids = tuple(ids)
         self.retries = retries
         self.timeout_s = timeout_s
+        self.bulk_read = bulk_read
         self.rad_per_count = T.P1_RAD_PER_COUNT if self.protocol == 1 else T.P2_RAD_PER_COUNT
         self.rad_s_per_speed_unit = (T.P1_RAD_S_PER_SPEED_UNIT if self.protocol == 1
                                      else T.P2_RAD_S_PER_SPEED_UNIT)
@@ -259,9 +261,40 @@ class DynamixelBus:
 
     def read_states(self) -> tuple[ServoStatus, ...]:
         """Present position, speed, load, voltage, temperature and error of every servo."""
+        if self.protocol == 1 and self.bulk_read:
+            return self._read_states_p1_bulk()
         if self.protocol == 1:
             return tuple(self._read_state_p1(i) for i in self.ids)
         return self._read_states_p2()
+
+    def _decode_p1(self, dxl_id: int, d: Sequence[int], error: int) -> ServoStatus:
+        speed = decode_speed_p1(d[2] | (d[3] << 8))
+        return ServoStatus(dxl_id, _signed(d[0] | (d[1] << 8), 2),
+                           speed * self.rad_s_per_speed_unit, decode_load_p1(d[4] | (d[5] << 8)),
+                           d[6] * T.VOLTS_PER_UNIT, float(d[7]), error)
+
+    def _read_states_p1_bulk(self) -> tuple[ServoStatus, ...]:
+        """One Protocol 1.0 BULK_READ (0x92) for every servo.
+
+        dynamixel-sdk 4.1's GroupBulkRead calls the 1.0 handler's ``bulkReadTx`` with one
+        argument too many (TypeError), so the handler's own ``bulkReadTx``/``readRx`` are used.
+        """
+        param = [v for i in self.ids for v in (T.P1_STATE_LEN, i, T.P1_STATE_START)]
+
+        def fn() -> tuple[int, int, Any]:
+            result = self._ph.bulkReadTx(self._port, param, len(param))
+            if result != self._sdk.COMM_SUCCESS:
+                self._port.is_using = False
+                return result, 0, None
+            out = []
+            for i in self.ids:
+                data, result, error = self._ph.readRx(self._port, i, T.P1_STATE_LEN)
+                if result != self._sdk.COMM_SUCCESS:
+                    return result, 0, None
+                out.append(self._decode_p1(i, data, error))
+            return result, 0, tuple(out)
+        states, _ = self._call("bulk state read", fn)
+        return states  # type: ignore[no-any-return]
 
     def _read_state_p1(self, dxl_id: int) -> ServoStatus:
         def fn() -> tuple[int, int, Any]:
@@ -269,10 +302,7 @@ class DynamixelBus:
                                                     T.P1_STATE_LEN)
             return result, error, data
         d, error = self._call(f"state read of servo {dxl_id}", fn)
-        speed = decode_speed_p1(d[2] | (d[3] << 8))
-        return ServoStatus(dxl_id, _signed(d[0] | (d[1] << 8), 2),
-                           speed * self.rad_s_per_speed_unit, decode_load_p1(d[4] | (d[5] << 8)),
-                           d[6] * T.VOLTS_PER_UNIT, float(d[7]), error)
+        return self._decode_p1(dxl_id, d, error)
 
     def _read_states_p2(self) -> tuple[ServoStatus, ...]:
         state, errs = self._sync_state, self._sync_error

@@ -185,7 +185,11 @@ class DynamixelHand:
         self.target = [self.clamp(k, self.joint[k]) for k in range(4)]
         if mode == "open":
             self.target[:3] = [0.0, 0.0, 0.0]
-        self._guard("safe-state goal write", self._write_goals)
+        try:  # best effort: going safe must not fail on a dead bus
+            self._guard("safe-state goal write", self._write_goals)
+        except DeviceError as exc:
+            self._faults.append(f"safe-state goal write: {exc}")
+            log.error("dynamixel: safe-state goal write failed: %s", exc)
 
     def close(self) -> None:
         """Torque off (best effort) and close the port."""
@@ -367,5 +371,5 @@ def build_dynamixel_hand(cfg: HandConfig) -> DynamixelHand:
     d = cfg.dynamixel
     _check_config(d)
     bus = DynamixelBus(d.port, d.baud_rate, d.protocol, d.ids, retries=d.retries,
-                       timeout_s=d.timeout_s)
+                       timeout_s=d.timeout_s, bulk_read=d.bulk_read)
     return DynamixelHand(bus, d)

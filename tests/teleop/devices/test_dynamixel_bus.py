@@ -71,6 +71,25 @@ def test_state_read_and_multi_turn_goals(emu: PtyServoEmulator) -> None:
         bus.close()
 
 
+def test_protocol1_bulk_read_matches_single_reads() -> None:
+    e = PtyServoEmulator(make_bus_emulator(1, homes_counts=(10, -20, 30, -40), physics="simple",
+                                           faults=FaultConfig(overload_ids=(3,))))
+    e.start()
+    try:
+        single = make_bus(e)
+        bulk = make_bus(e, bulk_read=True)
+        a, b = single.read_states(), bulk.read_states()
+        assert [s.position_counts for s in b] == [10, -20, 30, -40]
+        assert [(s.position_counts, s.error) for s in a] == [(s.position_counts, s.error)
+                                                            for s in b]
+        assert b[2].hardware_faults == ("overload",)
+        assert e.bus.counters.by_instruction.get(0x92) == 1
+        single.close()
+        bulk.close()
+    finally:
+        e.stop()
+
+
 def test_servo_refusal_is_a_servo_error(emu: PtyServoEmulator) -> None:
     bus = make_bus(emu)
     try:
