@@ -34,6 +34,7 @@ class LoopStats:
     elapsed_s: float
     lateness_s: np.ndarray  # per tick: start time minus deadline
     stall_ticks: tuple[int, ...] = ()  # tick indices after which deadlines were skipped
+    tick_s: np.ndarray | None = None  # per tick: how long tick() took
 
     @property
     def achieved_rate_hz(self) -> float:
@@ -55,6 +56,10 @@ class LoopStats:
             f"{prefix}_lateness_p50_us": self.lateness_percentile_s(50) * 1e6,
             f"{prefix}_lateness_p99_us": self.lateness_percentile_s(99) * 1e6,
             f"{prefix}_lateness_max_us": self.lateness_percentile_s(100) * 1e6,
+            f"{prefix}_tick_p99_us": float(np.percentile(self.tick_s, 99)) * 1e6
+            if self.tick_s is not None and self.tick_s.size else math.nan,
+            f"{prefix}_tick_max_us": float(np.max(self.tick_s)) * 1e6
+            if self.tick_s is not None and self.tick_s.size else math.nan,
             f"{prefix}_stalls": float(len(self.stall_ticks)),
             f"{prefix}_first_stall_tick": float(self.stall_ticks[0]) if self.stall_ticks
             else -1.0,
@@ -94,6 +99,7 @@ class RateLoop:
         lateness: list[float] = []
         skipped = 0
         stalls: list[int] = []
+        durations: list[float] = []
         k = 0
         while not self.stop_event.is_set():
             deadline = start + k * self.period_s
@@ -110,13 +116,14 @@ class RateLoop:
                 late = now - deadline
             lateness.append(late)
             tick(deadline)
+            durations.append(self.clock.now_s() - now)
             k += 1
             if should_stop is not None and should_stop():
                 break
         elapsed = self.clock.now_s() - start
         return LoopStats(rate_hz=self.rate_hz, ticks=len(lateness), skipped=skipped,
                          elapsed_s=elapsed, lateness_s=np.asarray(lateness, dtype=float),
-                         stall_ticks=tuple(stalls))
+                         stall_ticks=tuple(stalls), tick_s=np.asarray(durations, dtype=float))
 
 
 def try_realtime_priority(priority: int = 20) -> bool:

@@ -48,10 +48,9 @@ class Telemetry:
             self.epoch_s = t_s
         return t_s - self.epoch_s
 
-    def _delay(self, key: str, value: float) -> float | None:
+    def _delay(self, key: str, value: float) -> None:
         if math.isfinite(value):
             self._delays[key] = value
-        return self._delays.get(key)
 
     def emit(self, sample: Sample, events: list[str],
              reading: HandReading | None = None) -> None:
@@ -67,6 +66,13 @@ class Telemetry:
         if self.rec is None:
             return
         from teleop.viz import dashboard as dash
+
+        # achieved delays arrive on some ticks only: keep the latest from every tick
+        if isinstance(sample, ControllerSample):
+            self._delay("cm", sample.master_delay_s)
+            self._delay("ch", sample.hand_delay_s)
+        else:
+            self._delay(sample.__class__.__name__, sample.delay_s)
 
         for text in events:
             level = "WARN" if "watchdog" in text or "fault" in text else "INFO"
@@ -89,19 +95,19 @@ class Telemetry:
             dash.log_master(rec, t, trigger_position_m=s.trigger_position_m,
                             displayed_force_n=s.displayed_force_n, tank_j=s.tank_j,
                             port_in_j=s.port_in_j, port_out_j=s.port_out_j,
-                            delay_s=self._delay("m", s.delay_s))
+                            delay_s=self._delays.get("MasterSample"))
             self._dropped_event(dash, t, "force commands", s.dropped)
         elif isinstance(s, ControllerSample):
             dash.log_controller(rec, t, setpoints_rad=s.setpoint_rad,
                                 commanded_force_n=s.commanded_force_n,
                                 energy_stored_j=s.store_j,
-                                master_delay_s=self._delay("cm", s.master_delay_s),
-                                hand_delay_s=self._delay("ch", s.hand_delay_s))
+                                master_delay_s=self._delays.get("cm"),
+                                hand_delay_s=self._delays.get("ch"))
             self._dropped_event(dash, t, "master states", s.master_dropped)
             self._dropped_event(dash, t, "hand states", s.hand_dropped)
         elif isinstance(s, HandSample) and reading is not None:
             dash.log_hand(rec, t, reading, tank_j=s.tank_j, port_in_j=s.port_in_j,
-                          port_out_j=s.port_out_j, delay_s=self._delay("h", s.delay_s))
+                          port_out_j=s.port_out_j, delay_s=self._delays.get("HandSample"))
             self._dropped_event(dash, t, "hand commands", s.dropped)
 
     def close(self) -> None:

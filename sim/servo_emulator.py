@@ -133,6 +133,8 @@ class EmulatedServo:
                 bad = not T.P2_POSITION_MIN <= v <= T.P2_POSITION_MAX
             elif not p1 and reg.name == "goal_pwm":
                 bad = v > int.from_bytes(mem[36:38], "little")
+            elif not p1 and reg.name == "profile_velocity":
+                bad = v > int.from_bytes(mem[44:48], "little")
             elif reg.name == "torque_enable":
                 bad = v > 1
             if bad:

@@ -195,14 +195,15 @@ class FingerServoPhysics:
 def build_physics(homes_rad: Sequence[float], inversions: Sequence[int], object_cfg: Any = None,
                   *, prefer_finger: bool = True) -> ServoPhysics:
     """The finger model when ``sim.finger`` is importable, else the labelled fallback."""
-    reason = "not requested"
+    reason = ""
     if prefer_finger:
         try:
             return FingerServoPhysics(homes_rad, inversions, object_cfg)
         except (ImportError, AttributeError, TypeError) as exc:  # model absent or API mismatch
             reason = f"{type(exc).__name__}: {exc}"
     fallback = SimpleServoPhysics(homes_rad, inversions)
-    fallback.label = f"simple servo model (FALLBACK; sim.finger unusable: {reason})"
+    fallback.label = ("simple servo model (requested)" if not prefer_finger else
+                      f"simple servo model (FALLBACK; sim.finger unusable: {reason})")
     return fallback
 
 

@@ -53,6 +53,7 @@ class DiagnoseOptions:
     fit_rate_hz: float = 250.0
     max_nfev: int = 8
     screen_top: int = 3
+    refine_top: int = 2               # candidates refitted fully before choosing each effect
     screen_above: int = 7             # screen candidates by equation error above this many
     noise_factor: float = 1.5         # residual rms below this many noise levels: stop adding
 
@@ -262,6 +263,9 @@ def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnos
         rms = math.sqrt(current.rss / current.n)
         if rms < opts.noise_factor * noise and chosen:
             break  # what is left is measurement noise
+        if len(names) > opts.screen_above:
+            remaining = list(_screen(sig, nominal, tuple(remaining), fixed_inertia,
+                                     data.scales, opts.screen_top, current))
         fits: list[tuple[float, str, ModelFit]] = []
         for name in remaining:
             start = _best_start(data, nominal, current, name, sig, fixed_inertia)
@@ -273,29 +277,53 @@ def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnos
                               current.effects + (name,), opts.max_nfev)
             fits.append((current.bic - f.bic, name, f))
         fits.sort(key=lambda x: -x[0])
+        # refine the leading candidates fully before choosing (quick fits rank roughly)
+        refined = []
+        for dbic, name, f in fits[: opts.refine_top]:
+            if dbic >= opts.min_delta_bic:
+                f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
+                dbic = current.bic - f.bic
+            refined.append((dbic, name, f))
+        fits = sorted(refined + fits[opts.refine_top:], key=lambda x: -x[0])
         if not chosen:
             ranking = [(n, d) for d, n, _ in fits]
         accepted = False
         for dbic, name, f in fits:
             if dbic < opts.min_delta_bic:
                 break
-            f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
-            dbic = current.bic - f.bic
-            z, sz = f.value(f"effect:{name}"), f.std(f"effect:{name}")
-            if dbic < opts.min_delta_bic or not abs(z - cand.neutral(name)) > 2.0 * sz:
-                continue
             gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
             if gain < opts.min_holdout_gain:
                 continue
             p, s = _effect_params(name, f, data)
             chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
             current = f
-            remaining = [n for d, n, _ in fits if n != name and d >= opts.min_delta_bic]
+            remaining = [n for n in names if n not in current.effects]
             accepted = True
             break
         if not accepted:
             break
+    if len(chosen) > 1:
+        current, chosen = _prune(data, nominal, current, chosen, opts)
     return current, chosen, ranking
+
+
+def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[EffectResult],
+           opts: DiagnoseOptions) -> tuple[ModelFit, list[EffectResult]]:
+    """Backward elimination: drop an effect the others make redundant (delta BIC too small)."""
+    changed = True
+    while changed and len(chosen) > 1:
+        changed = False
+        for e in list(chosen):
+            rest = tuple(n for n in full.effects if n != e.name)
+            start = {k: v for k, v in full.as_dict().items() if k != f"effect:{e.name}"
+                     and not (e.name == "stiction" and k == "stribeck_velocity")}
+            reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
+            if reduced.bic - full.bic < opts.min_delta_bic:
+                chosen = [c for c in chosen if c.name != e.name]
+                full = reduced
+                changed = True
+                break
+    return full, chosen
 
 
 def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
@@ -308,15 +336,24 @@ def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
 
 
 def _screen(sig: EESignals, nominal: AxisNominal, names: tuple[str, ...], fixed_inertia: float,
-            scales: cand.Scales, top: int) -> tuple[str, ...]:
-    """Candidates worth an output-error fit: the best ``top`` by equation error, plus the
-    effects equation error cannot see well (stiction, backlash, series compliance)."""
+            scales: cand.Scales, top: int, current: ModelFit | None = None) -> tuple[str, ...]:
+    """Candidates worth an output-error fit: the best ``top`` by equation error (on top of the
+    effects already in ``current``), plus the effects equation error cannot see well (stiction,
+    backlash, series compliance)."""
+    if len(names) <= top:
+        return names
     grids = _ee_grids(scales)
-    base = ee_fit(sig, nominal, {}, fixed_inertia)
+    base_eff: dict[str, float] = {}
+    if current is not None:
+        for e in current.effects:
+            if e in EE_EFFECTS:
+                base_eff[e] = current.value(f"effect:{e}")
+    base = ee_fit(sig, nominal, base_eff, fixed_inertia)
     scored = []
     for name in names:
         if name in EE_EFFECTS and name != "stiction":
-            f = ee_effect_fit(sig, nominal, {}, name, grids.get(name, (1.0,)), fixed_inertia)
+            f = ee_effect_fit(sig, nominal, base_eff, name, grids.get(name, (1.0,)),
+                              fixed_inertia)
             scored.append((base.bic - f.bic, name))
     scored.sort(reverse=True)
     keep = {n for _, n in scored[:top]} | {n for n in names if n not in EE_EFFECTS
@@ -414,9 +451,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
     if mode == "output-error":
-        screened = (_screen(sig, nominal, names, fixed_inertia, scales, opts.screen_top)
-                    if len(names) > opts.screen_above else names)
-        final, chosen, ranking = _select_oe(data, nominal, nom_fit, opts, screened, sig,
+        final, chosen, ranking = _select_oe(data, nominal, nom_fit, opts, names, sig,
                                             fixed_inertia, noise)
         r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
         before, after = nom_nrmse, nrmse(data.y, final.y_fit)

@@ -194,7 +194,7 @@ def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
     rss = float(r[sel] @ r[sel])
     n = int(sel.sum())
     jac = res.jac
-    near = (res.x - lo < 1e-3 * xs) | (hi - res.x < 1e-3 * xs)
+    near = (res.x - lo < 1e-2 * xs) | (hi - res.x < 1e-2 * xs)
     free = (res.active_mask == 0) & ~near  # parameters held at a bound are not free to vary
     sigma = np.zeros(len(names))
     try:

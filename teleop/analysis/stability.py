@@ -93,12 +93,16 @@ class StabilityCriteria:
     hf_hz: float = 5.0
     early_window: tuple[float, float] = (0.2, 0.5)
     late_window: tuple[float, float] = (0.6, 1.0)
-    sustained_fraction: float = 0.03
+    sustained_fraction: float = 0.08
+    decay_ratio: float = 0.5
     growth_ratio: float = 2.0
-    floor_fraction: float = 0.005
+    floor_fraction: float = 0.01
     energy_tol_j: float = 1e-6
     energy_rel_tol: float = 1e-6
     min_observe_s: float = 1.0
+    min_reversals_sustained: int = 2
+    min_reversals_growing: int = 6
+    reversal_band_fraction: float = 0.01
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,6 +113,7 @@ class OscillationMetrics:
     late_rms: float
     scale: float
     hf_power_fraction: float
+    reversals: int = 1_000_000  # swings through +-band (after settling, or in the late window)
 
     @property
     def late_fraction(self) -> float:
@@ -123,12 +128,14 @@ class OscillationMetrics:
         return 1.0 if self.late_rms == 0 else math.inf
 
     def sustained(self, c: StabilityCriteria) -> bool:
-        """Late oscillation above the sustained-amplitude threshold."""
-        return self.late_fraction > c.sustained_fraction
+        """Late oscillation above the sustained-amplitude threshold and not dying away."""
+        return (self.late_fraction > c.sustained_fraction and self.growth > c.decay_ratio
+                and self.reversals >= c.min_reversals_sustained)
 
     def growing(self, c: StabilityCriteria) -> bool:
         """Late oscillation grown by ``growth_ratio`` and above the noise floor."""
-        return self.late_fraction > c.floor_fraction and self.growth > c.growth_ratio
+        return (self.late_fraction > c.floor_fraction and self.growth > c.growth_ratio
+                and self.reversals >= c.min_reversals_growing)
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,6 +180,19 @@ def _window(n: int, frac: tuple[float, float]) -> slice:
     return slice(min(a, n - 1), max(b, min(a, n - 1) + 1))
 
 
+def reversals(x: Array, band: float) -> int:
+    """How many times ``x`` crosses from above ``+band`` to below ``-band`` or back."""
+    state, count = 0, 0
+    for v in np.asarray(x, float):
+        if v > band and state <= 0:
+            count += state < 0
+            state = 1
+        elif v < -band and state >= 0:
+            count += state > 0
+            state = -1
+    return int(count)
+
+
 def _detrend(x: Array) -> Array:
     if len(x) < 2:
         return x - np.mean(x) if len(x) else x
@@ -197,11 +217,13 @@ def oscillation_metrics(t_s: Array, x: Array, scale: float,
         half = len(seg) // 2
         early, late = _detrend(seg[:half]), _detrend(seg[half:])
         hp = _detrend(seg)
+        swinging = hp
     else:
         xu, dt = _uniform(t, np.asarray(x, float))
         hp = highpass(xu, dt, c.highpass_hz)
         n = len(hp)
         early, late = hp[_window(n, c.early_window)], hp[_window(n, c.late_window)]
+        swinging = late
     n = len(hp)
     early_rms = float(np.sqrt(np.mean(early**2)))
     late_rms = float(np.sqrt(np.mean(late**2)))
@@ -209,7 +231,8 @@ def oscillation_metrics(t_s: Array, x: Array, scale: float,
     freqs = np.fft.rfftfreq(n, dt)
     total = float(np.sum(spec))
     hf = float(np.sum(spec[freqs >= c.hf_hz]) / total) if total > 0 else 0.0
-    return OscillationMetrics(early_rms, late_rms, scale, hf)
+    return OscillationMetrics(early_rms, late_rms, scale, hf,
+                              reversals(swinging, c.reversal_band_fraction * scale))
 
 
 def delayed(t_s: Array, x: Array, delay_s: float) -> Array:

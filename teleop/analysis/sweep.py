@@ -120,7 +120,7 @@ def point_config(cfg: TeleopConfig, p: SweepPoint) -> TeleopConfig:
 
 
 def point_duration_s(cfg: TeleopConfig, duration_s: float) -> float:
-    """``duration_s``, lengthened so that two round trips plus a second follow the settling.
+    """``duration_s``, lengthened so that three round trips and 1.5 s follow the settling.
 
     A long delay makes a slow loop: its oscillation can only be told from a transient after
     a few round trips.
@@ -128,7 +128,7 @@ def point_duration_s(cfg: TeleopConfig, duration_s: float) -> float:
     settle = settle_time_s(cfg)
     if settle <= 0:
         return duration_s
-    return max(duration_s, settle + 2.0 * round_trip_s(cfg) + 1.0)
+    return max(duration_s, settle + 3.0 * round_trip_s(cfg) + 1.5)
 
 
 def _point_seed(seed: int, ci: int, di: int, li: int) -> int:

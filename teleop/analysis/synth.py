@@ -115,3 +115,21 @@ def make_case(effects: tuple[str, ...], signal: str | None, seed: int, *,
     cols[OUTPUT_COL] = y
     meta = [("generator", "teleop.analysis.synth"), ("seed", str(seed))]
     return SynthCase(Recording.from_columns(cols, meta), p, eff, signal or "free", sigma, seed)
+
+
+def make_validation(case: SynthCase, signal: str | None, seed: int, *,
+                    duration_s: float = 6.0, rate_hz: float = 1000.0) -> SynthCase:
+    """Another recording of the same truth (parameters and effects) with a new input."""
+    rng = np.random.default_rng(seed)
+    p, eff = case.params, case.effects
+    t = np.arange(int(duration_s * rate_hz)) / rate_hz
+    u = None if signal is None else input_signal(signal, t, p.stiffness, rng)
+    x0 = rng.uniform(0.8, 1.2) * (1 if rng.random() < 0.5 else -1) if u is None else 0.0
+    y = simulate_axis(t, u, p, eff, x0=x0) + case.noise_std * rng.standard_normal(len(t))
+    cols = {"t_s": t}
+    if u is not None:
+        cols[INPUT_COL] = u
+    cols[OUTPUT_COL] = y
+    rec = Recording.from_columns(cols, [("generator", "teleop.analysis.synth"),
+                                        ("seed", str(seed))])
+    return SynthCase(rec, p, eff, signal or "free", case.noise_std, seed)

@@ -134,9 +134,12 @@ class DynamixelHand:
             self._setup_servo(dxl_id)
         self._read_state()
         self.target = [self.clamp(k, self.joint[k]) for k in range(4)]
+        self._write_goals()  # goals first (hold here), then torque on: no jump to an old goal
+        for dxl_id in self.cfg.ids:
+            self.bus.write(dxl_id, "torque_enable", 1)
         if self.cfg.calibrate:
             self.calibrate()
-        self._write_goals()
+            self._write_goals()
         self.started = True
 
     def _setup_servo(self, dxl_id: int) -> None:
@@ -154,7 +157,6 @@ class DynamixelHand:
                 bus.write(dxl_id, "torque_enable", 0)
                 bus.write(dxl_id, "operating_mode", T.P2_OPERATING_MODE_MULTI_TURN)
             bus.write(dxl_id, "goal_pwm", round(self.cfg.torque_limit * T.P2_PWM_MAX))
-        bus.write(dxl_id, "torque_enable", 1)
 
     def apply(self, command: HandCommand) -> None:
         """New targets (after the pacing delay when ``command_pacing`` is on)."""
@@ -251,9 +253,10 @@ class DynamixelHand:
 
     def _write_goals(self) -> None:
         goals = {}
+        cap = T.P1_SPEED_MAX_UNITS if self.bus.protocol == 1 else T.P2_VELOCITY_LIMIT
         for k, dxl_id in enumerate(self.cfg.ids):
             units = self.speed_rad_s[k] * self.ratio[k] / self.bus.rad_s_per_speed_unit
-            speed = 0 if units <= 0 else max(1, min(T.P1_SPEED_MAX_UNITS, round(units)))
+            speed = 0 if units <= 0 else max(1, min(cap, round(units)))
             goals[dxl_id] = Goal(self.counts_from_joint(k, self.clamp(k, self.target[k])), speed)
         self.bus.write_goals(goals)
 

@@ -190,6 +190,7 @@ P2_RAD_S_PER_SPEED_UNIT = 0.229 * 2.0 * math.pi / 60.0
 P1_SPEED_MAX_UNITS = 1023
 P1_TORQUE_LIMIT_MAX = 1023
 P2_PWM_MAX = 885
+P2_VELOCITY_LIMIT = 230  # default velocity limit (units of 0.229 rpm); profile velocity cap
 LOAD_UNITS_FULL = 1023  # 100 % of max torque, 0.1 % per unit
 VOLTS_PER_UNIT = 0.1
 #: Baud-rate register -> bit/s (Protocol 1.0: 2e6/(v+1)); Protocol 2.0 uses a lookup.

@@ -168,6 +168,11 @@ def test_injected_overload_overheat_and_corruption(protocol: int) -> None:
         lk.emu.bus.faults = FaultConfig(drop_rate=1.0)
         _, result, _ = lk.ph.ping(lk.port, 1)
         assert result == sdk.COMM_RX_TIMEOUT
+        lk.emu.bus.faults = FaultConfig(latency_s=0.05)
+        t0 = time.monotonic()
+        _, result, _ = lk.ph.read1ByteTxRx(lk.port, 1, temp_addr)
+        assert result == COMM_SUCCESS and time.monotonic() - t0 >= 0.05
+        assert lk.emu.bus.counters.dropped >= 1 and lk.emu.bus.counters.corrupted >= 1
     finally:
         lk.close()
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 
 import pytest
 
@@ -42,15 +43,28 @@ def command(fingers: float, preshape: float = 0.0) -> HandCommand:
     return HandCommand(Header(1, 0.0, 0.0), (fingers,) * 3, preshape)
 
 
-def run_for(hand: DynamixelHand, cmd: HandCommand, duration_s: float) -> list:
-    """Apply ``cmd`` every 25 ms (as the controller does) and read; returns the readings."""
-    out = []
+def run_for(hand: DynamixelHand, cmd: HandCommand, duration_s: float,
+            until: Callable[[list], bool] | None = None) -> list:
+    """Apply ``cmd`` every 25 ms (as the controller does) and read, for ``duration_s`` or until
+    ``until(readings)`` holds (the physics may run slower than real time on a busy machine)."""
+    out: list = []
     t0 = time.monotonic()
     while time.monotonic() - t0 < duration_s:
         hand.apply(cmd)
         out.append(hand.read(time.monotonic() - t0))
+        if until is not None and until(out):
+            break
         time.sleep(0.025)
     return out
+
+
+def settled(readings: list) -> bool:
+    """Every finger loaded and still for the last 0.5 s (20 readings)."""
+    if len(readings) < 40:
+        return False
+    last = readings[-20:]
+    return all(abs(last[-1].fingers[k].motor_angle_rad - last[0].fingers[k].motor_angle_rad)
+               < 0.01 and last[-1].fingers[k].load_units > 150 for k in range(3))
 
 
 @pytest.mark.parametrize("protocol", [1, 2])
@@ -63,7 +77,7 @@ def test_hand_closes_on_the_object_and_reports_the_load(protocol: int) -> None:
         hand.start()
         first = hand.read(0.0)
         assert all(abs(f.motor_angle_rad) < 0.01 for f in first.fingers)  # zero = open
-        closing = run_for(hand, command(1.5, preshape=0.5), 2.5)
+        closing = run_for(hand, command(1.5, preshape=0.5), 8.0, until=settled)
         end = closing[-1]
         angles = [r.fingers[0].motor_angle_rad for r in closing]
         assert angles[len(angles) // 4] < angles[len(angles) // 2] < angles[-1]  # closing
@@ -76,9 +90,11 @@ def test_hand_closes_on_the_object_and_reports_the_load(protocol: int) -> None:
         with emu.lock:
             proximal = emu.bus.physics.proximal_rad()  # type: ignore[attr-defined]
         assert all(0.05 < p < 0.4 for p in proximal)  # the object stops the proximal link
-        opened = run_for(hand, command(0.0), 1.5)[-1]
-        for f, held in zip(opened.fingers, end.fingers, strict=True):
-            assert f.load_units < 0.5 * held.load_units and not any(f.contact)
+        def released(readings: list) -> bool:
+            return all(f.load_units < 0.5 * h.load_units and not any(f.contact)
+                       for f, h in zip(readings[-1].fingers, end.fingers, strict=True))
+        opening = run_for(hand, command(0.0), 6.0, until=released)
+        assert released(opening)  # off the object the load falls and contact clears
     finally:
         hand.close()
         emu.stop()
