@@ -1,0 +1,101 @@
+"""One sweep point on the live services: ``teleop up`` over zenoh, read back its recordings.
+
+The point's configuration is written to a temporary TOML file; ``teleop up --duration D
+--record DIR --dashboard off --config FILE`` runs master, controller and hand as three
+processes in real time; their ``DIR/<role>.csv`` recordings are merged onto the master's
+time base (the others held at their latest sample) and turned into
+:class:`~teleop.analysis.stability.RunSignals` like a lockstep run.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from teleop.analysis.stability import RunSignals
+from teleop.analysis.sweep_signals import signals_from_columns
+from teleop.config import TeleopConfig
+from teleop.config.loader import render_toml
+from teleop.errors import DeviceError
+from teleop.recording import Recording, read_recording
+
+Array = NDArray[np.float64]
+
+__all__ = ["run_live_point", "signals_from_recordings"]
+
+#: extra wall time allowed for start-up and shutdown of the three processes
+STARTUP_ALLOWANCE_S = 60.0
+
+
+def _held(src: Recording, t: Array, name: str) -> Array:
+    """Column ``name`` of ``src`` sampled and held at times ``t`` (NaN before its start)."""
+    ts = src.t_s
+    idx = np.searchsorted(ts, t, side="right") - 1
+    out = src.column(name)[np.clip(idx, 0, len(ts) - 1)].astype(float)
+    out[idx < 0] = np.nan
+    return out
+
+
+def _triple(src: Recording, t: Array, name: str) -> Array:
+    return np.column_stack([_held(src, t, f"{name}_f{i + 1}") for i in range(3)])
+
+
+def signals_from_recordings(master: Recording, controller: Recording, hand: Recording,
+                            cfg: TeleopConfig) -> RunSignals:
+    """RunSignals from the three live recordings (master time base)."""
+    t = master.t_s
+    pressure = np.column_stack([_held(hand, t, f"pressure_f{i // 9 + 1}_{i % 9}")
+                                for i in range(27)])
+    m_tank = master.column("tank_j")
+    h_tank = hand.column("tank_j")
+    store = controller.column("store_j")
+    initial = float(np.nan_to_num(m_tank[0]) + np.nan_to_num(h_tank[0])
+                    + np.nan_to_num(store[0]))
+    cols = {
+        "t_s": t - t[0],
+        "setpoint_rad": _triple(controller, t, "setpoint_rad"),
+        "motor_angle_rad": _triple(hand, t, "motor_angle_rad"),
+        "displayed_force_n": master.column("displayed_force_n"),
+        "pressure": pressure,
+        "master_port_out_j": master.column("port_out_j"),
+        "master_port_in_j": master.column("port_in_j"),
+        "hand_port_out_j": np.nan_to_num(_held(hand, t, "port_out_j")),
+        "hand_port_in_j": np.nan_to_num(_held(hand, t, "port_in_j")),
+        "master_tank_j": m_tank,
+        "hand_tank_j": _held(hand, t, "tank_j"),
+        "master_limited_count": master.column("limit_count"),
+        "hand_limited_count": _held(hand, t, "limit_count"),
+        "dropped_force_command": master.column("dropped"),
+        "dropped_hand_command": _held(hand, t, "dropped"),
+        "dropped_master_state": _held(controller, t, "master_dropped"),
+        "dropped_hand_state": _held(controller, t, "hand_dropped"),
+    }
+    return signals_from_columns(cols, cfg, max(initial, 0.0))
+
+
+def run_live_point(cfg: TeleopConfig, duration_s: float) -> RunSignals:
+    """Run ``teleop up`` for ``duration_s`` with ``cfg`` and read its recordings back."""
+    with tempfile.TemporaryDirectory(prefix="teleop-sweep-") as tmp:
+        conf = Path(tmp) / "point.toml"
+        conf.write_text(render_toml(cfg), encoding="utf-8")
+        rec_dir = Path(tmp) / "rec"
+        cmd = [sys.executable, "-m", "teleop.cli", "up", "--config", str(conf),
+               "--duration", f"{duration_s:g}", "--record", str(rec_dir), "--dashboard", "off"]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, check=False,
+                                  timeout=duration_s + STARTUP_ALLOWANCE_S)
+        except subprocess.TimeoutExpired:
+            raise DeviceError(f"live sweep point: teleop up did not finish within "
+                                 f"{duration_s + STARTUP_ALLOWANCE_S:.0f} s") from None
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
+            raise DeviceError(f"live sweep point: teleop up exited with status "
+                                 f"{proc.returncode}: {tail[0]}")
+        recs = [read_recording(rec_dir / f"{role}.csv") for role in
+                ("master", "controller", "hand")]
+    return signals_from_recordings(recs[0], recs[1], recs[2], cfg)
