@@ -10,11 +10,18 @@ gone) and the hand holds at once (or opens, ``safety.hand_safe_state``): the ste
 hold command, so energy accounting and set-position modulation stay in force; when commands
 return, the set-point blends from the hold position into the commanded one over
 ``safety.force_ramp_s`` (no jump).
+
+Joint limits: every set-point is clamped to the hand's joint travel (fingers to
+``[0, hand.dynamixel.finger_travel_rad]``, preshape to ``[0, hand.dynamixel.preshape_travel_rad]``)
+twice: the received command before the step (so the energy accounts see what is applied),
+and the step's output right before ``backend.apply`` (a last line of defence, counted in
+``clamp_count``).  A non-finite output is never applied.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 from services.samples import HandSample
@@ -26,6 +33,21 @@ from teleop.control.interface import ControllerSuite, control_params
 from teleop.devices.base import HandBackend, HandReading
 from teleop.messages import HandCommand, HandMode, HandState, Header
 from teleop.transport.bus import Bus
+
+
+def clamp(x: float, lo: float, hi: float) -> float:
+    """``x`` limited to ``[lo, hi]``."""
+    return lo if x < lo else hi if x > hi else x
+
+
+def clamp_command(cmd: HandCommand, finger_max_rad: float,
+                  preshape_max_rad: float) -> HandCommand:
+    """``cmd`` with its set-points inside the joint limits (the same object if they are)."""
+    sp = tuple(clamp(v, 0.0, finger_max_rad) for v in cmd.finger_setpoint_rad)
+    pre = clamp(cmd.preshape_rad, 0.0, preshape_max_rad)
+    if sp == tuple(cmd.finger_setpoint_rad) and pre == cmd.preshape_rad:
+        return cmd
+    return replace(cmd, finger_setpoint_rad=sp, preshape_rad=pre)  # type: ignore[type-var]
 
 
 class HandService:
@@ -56,6 +78,10 @@ class HandService:
         self.ledger: EnergyLedger | None = None  # accounts after the last tick
         self.last_reading: HandReading | None = None
         self.t0_s: float | None = None
+        dx = cfg.hand.dynamixel
+        self.finger_max_rad = dx.finger_travel_rad
+        self.preshape_max_rad = dx.preshape_travel_rad
+        self.clamp_count = 0  # received commands or outputs moved into the joint limits
 
     def start(self) -> None:
         """Connect and calibrate the hand."""
@@ -68,7 +94,10 @@ class HandService:
             assert isinstance(msg, HandCommand)
             if self.command is not None and msg.header.seq > self.command.header.seq + 1:
                 self.dropped += msg.header.seq - self.command.header.seq - 1
-            self.command, self.delay_s, got = msg, r.delay_s, True
+            safe = clamp_command(msg, self.finger_max_rad, self.preshape_max_rad)
+            if safe is not msg:
+                self.clamp_count += 1
+            self.command, self.delay_s, got = safe, r.delay_s, True
         return got
 
     def _effective_command(self, reading: HandReading) -> HandCommand | None:
@@ -128,7 +157,13 @@ class HandService:
             finger_setpoint_rad=out.setpoint_rad, preshape_rad=out.preshape_rad,
             mode=HandMode.POSITION)
         if all(math.isfinite(v) for v in (*out.setpoint_rad, out.preshape_rad)):
-            self.backend.apply(applied)
+            limited = clamp_command(applied, self.finger_max_rad, self.preshape_max_rad)
+            if limited is not applied:
+                self.clamp_count += 1
+                self.events.append("set-point outside the joint limits: clamped")
+            self.backend.apply(limited)
+        else:
+            self.events.append("non-finite set-point: not applied")
         self.seq += 1
         state_msg = HandState(
             header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),

@@ -32,6 +32,7 @@ from teleop.config import TeleopConfig
 from teleop.devices.base import HandBackend, MasterBackend
 from teleop.transport.clock import VirtualClock
 from teleop.transport.inproc_bus import InProcessHub
+from teleop.transport.safe_decoder import RejectCounts
 
 Array = np.ndarray
 
@@ -142,6 +143,12 @@ class LockstepContext:
         self.controller_restarts += 1
 
 
+def _rejects(ctx: LockstepContext, role: str) -> RejectCounts:
+    """The rejection counts of ``role``'s current bus view (zeros while it is dead)."""
+    svc = getattr(ctx, role)
+    return svc.bus.stats().rejects if svc is not None else RejectCounts(0, 0, ())
+
+
 def _seeded(cfg: TeleopConfig, seed: int | None) -> TeleopConfig:
     if seed is None:
         return cfg
@@ -219,6 +226,8 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     tels = None
     if rec is not None:
         tels = [Telemetry(s.role, rec, None, 0.0, cfg.dashboard.rate_hz) for s in services]
+        for tel in tels:  # the live view of the role (a restarted service has a new one)
+            tel.rejects_source = lambda r=tel.role: _rejects(ctx, r)
     report_every = max(1, n_master // 100)
     try:
         while True:

@@ -159,6 +159,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
                               cfg.dashboard.rate_hz, meta)
         bus = ZenohBus.from_config(role, cfg, clock=clock)
+        telemetry.rejects_source = lambda: bus.stats().rejects
         svc = build_service(role, cfg, bus, backend)
         print(f"ready {role}", flush=True)
         # real-time priority already for the wait: on a busy machine a normal-priority
@@ -207,11 +208,14 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
             elif backend is not None:
                 backend.close()
         finally:
-            if bus is not None:
+            rejects: dict[str, float] = {}
+            if bus is not None:  # messages the bus rejected, per reason (teleop faults)
+                rejects = {f"rejects_{k}": float(n) for k, n in bus.stats().rejects.by_reason}
                 bus.close()
             if telemetry is not None:
                 telemetry.close()
             if stats is not None and opts.stats_path:
-                Path(opts.stats_path).write_text(json.dumps(stats.figures(role)) + "\n")
+                Path(opts.stats_path).write_text(json.dumps(stats.figures(role) | rejects)
+                                                 + "\n")
             for s, h in previous.items():
                 signal.signal(s, h)

@@ -9,6 +9,7 @@ happens.  Time on both is seconds since the session epoch.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from services.samples import (
 )
 from teleop.devices.base import HandReading
 from teleop.recording import RecordingWriter
+from teleop.transport.safe_decoder import RejectCounts
 
 
 class Telemetry:
@@ -40,6 +42,9 @@ class Telemetry:
         self._writer: RecordingWriter | None = None
         self._delays: dict[str, float] = {}
         self._dropped: dict[str, float] = {}
+        #: where the dashboard gets the bus's rejection counts (set by the runner)
+        self.rejects_source: Callable[[], RejectCounts] | None = None
+        self._rejects_logged: tuple[tuple[str, int], ...] = ()
         if rec is not None:  # import now, not inside the first tick
             from teleop.viz import dashboard  # noqa: F401
 
@@ -81,6 +86,11 @@ class Telemetry:
             return
         self._next_log_s = t + self.period_s
         self._log(dash, t, sample, reading)
+        if self.rejects_source is not None:
+            by_reason = self.rejects_source().by_reason
+            if by_reason != self._rejects_logged:
+                dash.log_rejects(self.rec, t, self.role, by_reason)
+                self._rejects_logged = by_reason
 
     def _dropped_event(self, dash: Any, t: float, name: str, total: float) -> None:
         before = self._dropped.get(name, 0.0)

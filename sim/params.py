@@ -7,7 +7,7 @@ description and the MX-28 datasheet (``shared/reference/reflex-hardware.md``).
 Recalibrated constants (the report's own numbers conflict with its measurements; we match the
 measurements, as the issue asks):
 
-* **Base spring** ``k_base_nm_per_rad``: the report's 5.47 N m/rad would need ~90 N of tendon
+* **Base spring** ``k_base_nm_per_rad``: the report's 5.47 N m/rad would need ~315 N of tendon
   force to lift the finger by 1 rad (with the ~17 mm base moment arm), yet its own Table 4.2
   shows 0.767 rad at 9.8 N.  Table 4.2's model column is linear above a threshold: 2.407 rad at
   15.7 N and 0.767 rad at 9.8 N give d(angle)/dF = 0.27797 rad/N, i.e.
@@ -18,8 +18,8 @@ measurements, as the issue asks):
   by 4 for 4 series segments; springs in series need each segment 4x stiffer than the whole
   (k_seg = n k_total).  Its 5.928 N m/rad also cannot be read off a 20 g weight with a protractor
   (1.3 mrad).  We calibrate the whole-joint stiffness to the report's position-mode offset
-  (~0.25 rad between set-point and proximal angle, section 3.1.1): 0.15 N m/rad total, 0.60 N m/rad
-  per segment.
+  (~0.25 rad between set-point and proximal angle, section 3.1.1): 0.30 N m/rad total, 1.2 N m/rad
+  per segment (offset 0.21-0.27 rad at set-points 0.6-1.2 rad).
 * **Motor viscous friction**: Table 4.1's "damping" falls with the input.  We model Coulomb
   friction ``motor_coulomb_units`` plus a viscous coefficient interpolated log-log through
   ``(u - u_c) / slope`` at the table's inputs, so the unloaded-string terminal speed reproduces

@@ -11,6 +11,7 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -151,14 +152,24 @@ def write_recording(path: Path | str, rec: Recording) -> None:
     """Write ``rec`` as CSV (metadata first as ``# key: value`` comments)."""
     _check_time(rec.t_s, str(path))
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", encoding="utf-8") as fh:
+    with _open_for_writing(path) as fh:
         for k, v in rec.meta:
             fh.write(f"# {k}: {v}\n")
         fh.write(",".join(rec.columns) + "\n")
         t_idx = rec.columns.index("t_s")
         for row in rec.data:
             fh.write(_fmt_row(row, t_idx) + "\n")
+
+
+def _open_for_writing(path: Path) -> TextIO:
+    """``path`` opened for writing (parent directories created); a one-line RecordingError
+    naming the path when that is impossible."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return path.open("w", encoding="utf-8")
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot write recording "
+                             f"({exc.strerror or type(exc).__name__})") from None
 
 
 class RecordingWriter:
@@ -169,9 +180,8 @@ class RecordingWriter:
         if "t_s" not in columns:
             raise RecordingError(f"{path}: a recording needs a t_s column")
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self.columns = tuple(columns)
-        self._fh = self.path.open("w", encoding="utf-8")
+        self._fh = _open_for_writing(self.path)
         for k, v in meta:
             self._fh.write(f"# {k}: {v}\n")
         self._fh.write(",".join(self.columns) + "\n")

@@ -44,8 +44,8 @@ def test_point_config_applies_point() -> None:
 
 def test_sweep_classifies_and_bisects() -> None:
     seen: list[int] = []
-    res = run_delay_sweep(TeleopConfig(), fake_runner, [0.0, 0.02, 0.05, 0.1], [0.0, 0.2],
-                          ["two-layer", "direct"], duration_s=3.0, refine_steps=4,
+    res = run_delay_sweep(TeleopConfig(), [0.0, 0.02, 0.05, 0.1], [0.0, 0.2],
+                          ["two-layer", "direct"], duration_s=3.0, refine_steps=4, runner=fake_runner,
                           progress=lambda i, n, r: seen.append(i),
                           predicted=[("direct", 0.03)])
     grid = res.grid_runs()
@@ -72,17 +72,17 @@ def test_sweep_classifies_and_bisects() -> None:
 
 
 def test_max_stable_delay_needs_all_below_stable() -> None:
-    res = run_delay_sweep(TeleopConfig(), fake_runner, [0.0, 0.01, 0.2], [0.0], ["direct"],
-                          duration_s=2.0)
+    res = run_delay_sweep(TeleopConfig(), [0.0, 0.01, 0.2], [0.0], ["direct"],
+                          duration_s=2.0, runner=fake_runner)
     assert max_stable_delay(res.runs, "direct") == (0.01, 0.2)
     lo, hi = max_stable_delay(res.runs, "two-layer")  # no such runs
     assert math.isnan(lo) and math.isinf(hi)
 
 
 def test_spawn_pool_is_deterministic() -> None:
-    args = (TeleopConfig(), fake_runner, [0.0, 0.05], [0.0, 0.2], ["direct"])
-    serial = run_delay_sweep(*args, duration_s=1.5, seed=3)
-    pooled = run_delay_sweep(*args, duration_s=1.5, seed=3, workers=2)
+    args = (TeleopConfig(), [0.0, 0.05], [0.0, 0.2], ["direct"])
+    serial = run_delay_sweep(*args, duration_s=1.5, seed=3, runner=fake_runner)
+    pooled = run_delay_sweep(*args, duration_s=1.5, seed=3, workers=2, runner=fake_runner)
     a = [(r.point, r.metrics) for r in serial.runs]
     b = [(r.point, r.metrics) for r in pooled.runs]
     assert a == b
@@ -90,16 +90,17 @@ def test_spawn_pool_is_deterministic() -> None:
 
 def test_bad_grid_is_user_error() -> None:
     with pytest.raises(UserInputError):
-        run_delay_sweep(TeleopConfig(), fake_runner, [], [0.0], ["direct"])
+        run_delay_sweep(TeleopConfig(), [], [0.0], ["direct"], runner=fake_runner)
     with pytest.raises(UserInputError):
-        run_delay_sweep(TeleopConfig(), fake_runner, [0.1], [1.5], ["direct"])
+        run_delay_sweep(TeleopConfig(), [0.1], [1.5], ["direct"], runner=fake_runner)
 
 
 def test_plot_writes_png(tmp_path) -> None:
     from teleop.analysis.sweep_plot import plot_sweep
 
-    res = run_delay_sweep(TeleopConfig(), fake_runner, [0.0, 0.05], [0.0, 0.2],
-                          ["two-layer", "direct"], duration_s=1.5, predicted=[("direct", 0.03)])
+    res = run_delay_sweep(TeleopConfig(), [0.0, 0.05], [0.0, 0.2],
+                          ["two-layer", "direct"], duration_s=1.5, predicted=[("direct", 0.03)],
+                          runner=fake_runner)
     out = plot_sweep(res, tmp_path / "s.png")
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
@@ -109,8 +110,8 @@ def test_rerun_log_has_metrics_and_signals(tmp_path) -> None:
 
     from teleop.analysis.sweep_rerun import log_sweep
 
-    res = run_delay_sweep(TeleopConfig(), fake_runner, [0.0, 0.05], [0.0], ["direct"],
-                          duration_s=1.0, keep_signals=True)
+    res = run_delay_sweep(TeleopConfig(), [0.0, 0.05], [0.0], ["direct"],
+                          duration_s=1.0, keep_signals=True, runner=fake_runner)
     assert res.runs[0].signals is not None and len(res.runs[0].signals.t_s) == 200
     path = log_sweep(res, tmp_path / "s.rrd")
     entities = {ch.entity_path for ch in rr.chunk.RrdReader(str(path)).stream()}

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -23,6 +23,7 @@ from teleop.analysis.equation_error import (
     EE_EFFECTS,
     EEFit,
     EESignals,
+    ee_apply,
     ee_effect_fit,
     ee_fit,
     ee_signals,
@@ -31,7 +32,7 @@ from teleop.analysis.equation_error import (
 from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, scan_effect, simulate
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.residual import ResidualStats, analyse_residual, noise_std
-from teleop.analysis.windows import Window, conditions, locate_windows
+from teleop.analysis.windows import Window, conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
 from teleop.recording import Recording
 
@@ -141,6 +142,29 @@ def _signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None
     return t, u, y
 
 
+def initial_state(t: Array, y: Array, span_s: float = 0.03) -> tuple[float, float]:
+    """Position and velocity at the first sample from a quadratic fit over ``span_s``."""
+    n = max(5, int(np.searchsorted(t, t[0] + span_s)))
+    c = np.polyfit(t[:n] - t[0], y[:n], 2)
+    return float(c[2]), float(c[1])
+
+
+def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
+                 opts: DiagnoseOptions) -> ModelFit:
+    """Nominal output-error fit; if it tracks poorly from the equation-error start, grow the
+    fitted horizon (first 20 %, 50 %, all of every segment) so the fit cannot lock onto a wrong
+    oscillation."""
+    fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
+    if nrmse(data.y, fit.y_fit) < 0.05:
+        return fit
+    grown = start
+    for frac in (0.2, 0.5, 1.0):
+        mask = np.concatenate([np.arange(len(s.y)) < frac * len(s.y) for s in data.segments])
+        g = fit_model(data, nominal, grown, (), opts.max_nfev * 4, mask=mask if frac < 1 else None)
+        grown = g.as_dict()
+    return g if g.rss < fit.rss else fit
+
+
 def _decimate(t: Array, u: Array | None, y: Array, rate_hz: float) -> Segment:
     fs = 1.0 / float(np.median(np.diff(t)))
     m = max(1, int(round(fs / rate_hz)))
@@ -183,7 +207,7 @@ def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple
     params: list[tuple[str, float]] = [(name, val)]
     stds: list[tuple[str, float]] = [(name, std)]
     if name == "stiction":
-        params.append(("stribeck_velocity", data.stribeck_velocity))
+        params.append(("stribeck_velocity", fit.value("stribeck_velocity")))
     return tuple(params), tuple(stds)
 
 
@@ -304,6 +328,13 @@ def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnos
             break
     if len(chosen) > 1:
         current, chosen = _prune(data, nominal, current, chosen, opts)
+        # report every effect's value as it stands in the final (joint) model
+        final = []
+        for e in chosen:
+            p, s = _effect_params(e.name, current, data)
+            final.append(replace(e, params=p, std=s, explanation=cand.explanation(e.name,
+                                                                                 p[0][1])))
+        chosen = final
     return current, chosen, ranking
 
 
@@ -428,13 +459,12 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     start = {n: c for n, c in zip(nom_ee.names, nom_ee.coef, strict=True)}
     if has_input and "inertia" in nominal.terms:
         start["inertia"] = max(start.get("inertia", inertia), 1e-6)
-    for i, s in enumerate(sigs):
-        start[f"x0_{i}"] = float(s.x[0])
-        start[f"v0_{i}"] = float(s.v[0])
+    for i, (t, _, y) in enumerate(raw):
+        start[f"x0_{i}"], start[f"v0_{i}"] = initial_state(t, y)
     names = cand.applicable(nominal, has_input)
     noise = float(np.sqrt(np.mean([noise_std(y) ** 2 for _, _, y in raw])))
 
-    nom_fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
+    nom_fit = _fit_nominal(data, nominal, start, opts)
     nom_nrmse = nrmse(data.y, nom_fit.y_fit)
     mode = opts.analysis
     if mode == "auto":
@@ -448,6 +478,13 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         reason = "chosen by --analysis"
 
     t_all = _contiguous([s.t for s in segs])
+    edge = np.zeros(len(sig.t), bool)  # filter transients at the ends of every segment
+    m = int(3 * sig.fs_hz / sig.cutoff_hz)
+    start_i = 0
+    for s_ in sigs:
+        edge[start_i: start_i + m] = True
+        edge[start_i + len(s_.t) - m: start_i + len(s_.t)] = True
+        start_i += len(s_.t)
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
     if mode == "output-error":
@@ -470,9 +507,10 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         nom_e, fin_e, chosen, ranking = _select_ee(sig, nominal, opts, names, fixed_inertia,
                                                    scales)
         ee_nom, ee_fin = nom_e.residual, fin_e.residual
-        tgt_scale = float(np.linalg.norm(fixed_inertia * sig.a if sig.u is None else sig.u))
-        before = float(np.linalg.norm(ee_nom)) / tgt_scale
-        after = float(np.linalg.norm(ee_fin)) / tgt_scale
+        tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
+        tgt_scale = float(np.linalg.norm(tgt - np.mean(tgt)))
+        before = float(np.linalg.norm(ee_nom[~edge])) / tgt_scale
+        after = float(np.linalg.norm(ee_fin[~edge])) / tgt_scale
         r_before, r_after = ee_nom, ee_fin
         nominal_params = tuple(zip(nom_e.names, nom_e.coef, strict=True))
         final_params = tuple(zip(fin_e.names, fin_e.coef, strict=True)) + fin_e.extra
@@ -482,29 +520,27 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         signals = {"position": sig.x}
         if sig.u is not None:
             signals["input"] = sig.u
-    edge = np.zeros(len(sig.t), bool)  # filter transients at the ends of every segment
-    m = int(3 * sig.fs_hz / sig.cutoff_hz)
-    start_i = 0
-    for s_ in sigs:
-        edge[start_i: start_i + m] = True
-        edge[start_i + len(s_.t) - m: start_i + len(s_.t)] = True
-        start_i += len(s_.t)
-    ee_nom = np.where(edge, 0.0, ee_nom)
-    ee_fin = np.where(edge, 0.0, ee_fin)
-    noise_ee = 1.4826 * float(np.median(np.abs(ee_fin[~edge] - np.median(ee_fin[~edge]))))
-    windows = locate_windows(sig.t, ee_nom, noise_ee, conds)
-    yy = data.y if mode == "output-error" else sig.x
+    windows = locate_windows(sig.t, excess(sig.t, ee_nom, ee_fin, ~edge), conds)
+    if not windows and mode == "output-error" and noise > 0:
+        # no burst and no bias in the effort balance: where does the simulated position
+        # depart from the measurement by more than the noise?
+        dt_fit = float(np.median(np.diff(t_all)))
+        score = moving_rms(r_before, int(0.2 / dt_fit)) / noise
+        conds_fit = {k: np.interp(t_all, sig.t, m.astype(float)) > 0.5 for k, m in conds.items()}
+        windows = locate_windows(t_all, score, conds_fit)
+    yy = data.y if mode == "output-error" else np.concatenate([y for _, _, y in raw])
     stats_b = analyse_residual(r_before, yy, signals)
     stats_a = analyse_residual(r_after, yy, signals)
     val = None
-    if validate is not None and mode == "output-error":
-        val = _validate(validate, opts, data, nominal, nom_fit, final)
+    if validate is not None:
+        val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
+               else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
                      windows, stats_b, stats_a, before, after, val, traces)
 
 
-def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nominal: AxisNominal,
-              nom: ModelFit, final: ModelFit) -> Validation:
+def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,
+              final: ModelFit) -> Validation:
     """NRMSE of both models on a held-out recording (only the initial state is fitted)."""
     t, u, y = _signals(rec, opts)
     if (u is None) != (not data.has_input):
@@ -512,34 +548,50 @@ def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nominal: Axi
     seg = _decimate(t, u, y, opts.fit_rate_hz)
     vdata = FitData((seg,), data.max_dt_s, data.scales, data.fixed_inertia,
                     data.stribeck_velocity)
-    sig = ee_signals(t, y, u)
+    x0, v0 = initial_state(t, y)
     out = []
     for f in (nom, final):
-        fixed = AxisNominal(nominal.terms, tuple(f.as_dict().get(term, nominal.value(term))
-                                                 for term in nominal.terms), 0.0)
-        start = {**f.as_dict(), "x0_0": float(sig.x[0]), "v0_0": float(sig.v[0])}
-        fixed_fit = _fit_state_only(vdata, fixed, start, f.effects)
-        out.append(nrmse(seg.y, fixed_fit))
+        start = {**{k: v for k, v in f.as_dict().items() if not k.startswith(("x0_", "v0_"))},
+                 "x0_0": x0, "v0_0": v0}
+        out.append(nrmse(seg.y, _fit_state_only(vdata, start)))
     return Validation(out[0], out[1])
 
 
-def _fit_state_only(data: FitData, nominal: AxisNominal, start: dict[str, float],
-                    effects: tuple[str, ...]) -> Array:
+def _validate_ee(rec: Recording, opts: DiagnoseOptions, nominal: AxisNominal, nom: EEFit,
+                 final: EEFit, fixed_inertia: float) -> Validation:
+    """Equation-error NRMSE (effort) of both fitted models on a held-out recording."""
+    t, u, y = _signals(rec, opts)
+    sig = ee_signals(t, y, u)
+    m = int(3 * sig.fs_hz / sig.cutoff_hz)
+    keep = slice(m, len(t) - m)
+    tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[keep]
+    scale = float(np.linalg.norm(tgt - np.mean(tgt))) or 1.0
+    return Validation(*(float(np.linalg.norm(ee_apply(sig, nominal, f, fixed_inertia)[keep]))
+                        / scale for f in (nom, final)))
+
+
+def _fit_state_only(data: FitData, start: dict[str, float]) -> Array:
+    """Simulation with every parameter fixed but the initial state (fitted)."""
     from scipy import optimize
 
-    base = [k for k in start if not k.startswith(("x0_", "v0_"))]
-    names = tuple(base) + ("x0_0", "v0_0")
-    fixed = [start[k] for k in base]
+    names = tuple(start)
+    base = [start[k] for k in names]
+    i0, i1 = names.index("x0_0"), names.index("v0_0")
+
+    def theta(s: Array) -> tuple[float, ...]:
+        th = list(base)
+        th[i0], th[i1] = float(s[0]), float(s[1])
+        return tuple(th)
 
     def resid(s: Array) -> Array:
-        r = simulate(names, tuple(fixed) + (s[0], s[1]), data) - data.y
+        r = simulate(names, theta(s), data) - data.y
         return np.where(np.isfinite(r), r, 10 * data.scales.position)
 
     x0 = np.array([start["x0_0"], start["v0_0"]])
     res = optimize.least_squares(resid, x0, x_scale=np.array([data.scales.position,
                                                               data.scales.velocity]),
                                  max_nfev=40)
-    return simulate(names, tuple(fixed) + (res.x[0], res.x[1]), data)
+    return simulate(names, theta(res.x), data)
 
 
 __all__ = ["DiagnoseOptions", "Diagnosis", "EffectResult", "Validation", "Traces", "diagnose",

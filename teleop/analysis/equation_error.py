@@ -146,7 +146,7 @@ def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | Non
     phi = np.column_stack([_filt(c, fs, fc) for c in cols]) if cols else np.zeros((len(target),
                                                                                      0))
     tgt = _filt(target, fs, fc)
-    margin = int(0.2 * fs / fc) + 1
+    margin = int(3 * fs / fc) + 1
     rows = slice(margin, len(tgt) - margin, sig.step)
     A, b = phi[rows], tgt[rows]
     if A.shape[1]:
@@ -197,3 +197,17 @@ def model_equation_error(sig: EESignals, p: AxisParams, eff: EffectSet) -> Array
     total = (f - p.viscous * v - p.stiffness * x + p.offset - (p.gravity + eff.gravity)
              * np.sin(x) - eff.nonlinear_stiffness * x ** 3 - fric)
     return p.inertia * a - total
+
+
+def ee_apply(sig: EESignals, nominal: AxisNominal, fit: EEFit, fixed_inertia: float) -> Array:
+    """Effort residual of an already fitted equation-error model on other signals."""
+    effects = dict(fit.extra)
+    for n in fit.names:
+        if n in EE_EFFECTS and n not in nominal.terms and n not in effects:
+            effects[n] = 1.0
+    names, cols, _, target = _columns(sig, nominal, effects, fixed_inertia)
+    coef = dict(zip(fit.names, fit.coef, strict=True))
+    fs, fc = sig.fs_hz, sig.cutoff_hz
+    total = sum((coef[n] * _filt(c, fs, fc) for n, c in zip(names, cols, strict=True)),
+                np.zeros(len(target)))
+    return total - _filt(target, fs, fc)

@@ -60,9 +60,13 @@ def to_text(d: Diagnosis, source: str = "") -> str:
             lines.append(f"  {i}. {e.name}: {ps} (+-{_fmt(unc)}), delta BIC {e.delta_bic:.1f}, "
                          f"held-out gain {e.holdout_gain:.1%}")
             lines.append(f"     {e.explanation}")
-    else:
+    elif d.residual_after.rms_over_noise < 3.0:
         lines.append("missing physics: none the data support (the nominal model explains the "
                      "recording to the noise)")
+    else:
+        lines.append(f"missing physics: no catalog effect improves the fit enough, yet the "
+                     f"residual is {d.residual_after.rms_over_noise:.0f}x the noise (physics "
+                     f"outside the catalog, or a start-up transient)")
     if d.ranking:
         lines.append("candidates (delta BIC vs nominal): " + ", ".join(
             f"{n} {b:.0f}" for n, b in d.ranking))

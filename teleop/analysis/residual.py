@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.signal import savgol_filter
 
 from teleop.analysis.axis_model import Array
 
@@ -14,7 +15,7 @@ from teleop.analysis.axis_model import Array
 class ResidualStats:
     """Summary of a fit residual.
 
-    ``noise_std`` is the measurement noise estimated from the data alone (second differences);
+    ``noise_std`` is the measurement noise estimated from the data alone (local cubic fits);
     ``whiteness`` is the fraction of autocorrelation lags 1..50 inside the 95 % band of white
     noise (near 0.95 for a white residual); ``corr`` holds correlation coefficients of the residual
     with named signals (input, position, velocity, sign of velocity).
@@ -32,13 +33,16 @@ class ResidualStats:
         return self.rms / self.noise_std if self.noise_std > 0 else math.inf
 
 
-def noise_std(y: Array) -> float:
-    """Measurement noise of a smooth signal: robust std of its second difference / sqrt(6)."""
-    d2 = np.diff(y, 2)
-    if len(d2) == 0:
+def noise_std(y: Array, window: int = 21) -> float:
+    """Measurement noise of a smooth signal: spread of its residual from a local cubic fit
+    (Savitzky-Golay over ``window`` samples), corrected for the fit's leverage; robust (MAD)
+    unless the signal is quantised so coarsely that the MAD is zero."""
+    if len(y) < window + 2:
         return 0.0
-    mad = float(np.median(np.abs(d2 - np.median(d2))))
-    return 1.4826 * mad / math.sqrt(6.0)
+    r = y - savgol_filter(y, window, 3)
+    corr = 1.0 / math.sqrt(1.0 - 4.0 / window)
+    mad = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    return (mad if mad > 0 else float(np.std(r))) * corr
 
 
 def autocorr(r: Array, max_lag: int) -> Array:

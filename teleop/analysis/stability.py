@@ -7,20 +7,31 @@ Definitions
 -----------
 ``stable``
     The loop shows **no sustained and no growing oscillation**, and every signal stays finite.
-    For each oscillation signal (the hand set-point, the finger angle and the displayed force)
-    the slow, operator-driven component is removed with a zero-phase high-pass filter
-    (:attr:`StabilityCriteria.highpass_hz`, below which the operator's grasp script lives: its
-    ramps last about a second).  What remains is the loop's own oscillation.  Its RMS is taken in
-    an *early* and a *late* window (:attr:`StabilityCriteria.early_window` and
-    ``late_window``, fractions of the run) and normalised by the signal's scale (the set-point
-    range for angles, the trigger's force limit for the force).  The run is unstable when, for
-    any signal, the late RMS is above :attr:`StabilityCriteria.sustained_fraction` of the scale
-    (a sustained oscillation or limit cycle; saturation keeps a delayed unstable loop bounded, so
-    growth alone would miss it), or when the late RMS exceeds the early one by
-    :attr:`StabilityCriteria.growth_ratio` while above the noise floor
-    :attr:`StabilityCriteria.floor_fraction` (a growing oscillation not yet at its limit).
-    The share of high-passed power above :attr:`StabilityCriteria.hf_hz` (~5 Hz) is reported as
-    ``hf_power_fraction`` (Rodriguez-Seda et al. 2009) but does not decide ``stable``.
+    The oscillation signals are the hand set-point, the finger angle and the displayed force.
+    First the operator-driven part is removed.  When the run says when the operator holds
+    still and the loop has closed (:attr:`RunSignals.settle_s`: end of the grasp ramp plus a
+    round trip; the sweep's scenario is one close and a long hold), the part after it is
+    split into an early and a late half, each detrended by a straight line (slow settling is
+    not oscillation).  Otherwise the run is high-passed at
+    :attr:`StabilityCriteria.highpass_hz` and windowed by fractions.  The RMS of what remains,
+    over the signal's scale (the set-point range for angles, the trigger's force limit for the
+    force), is compared:
+
+    * sustained: late RMS above :attr:`StabilityCriteria.sustained_fraction` of the scale, not
+      decayed below :attr:`StabilityCriteria.decay_ratio` of the early RMS, with at least
+      :attr:`StabilityCriteria.min_reversals_sustained` swings through a band of
+      :attr:`StabilityCriteria.reversal_band_fraction` of the scale (a limit cycle: saturation
+      keeps a delayed unstable loop bounded, so growth alone would miss it; with long delays
+      it is slow, a relay-like swing between the force limits every few seconds);
+    * growing: late RMS more than :attr:`StabilityCriteria.growth_ratio` times the early one,
+      above :attr:`StabilityCriteria.floor_fraction` of the scale, with at least
+      :attr:`StabilityCriteria.min_reversals_growing` swings (an oscillation, not a slow
+      transient out of a saturated start).
+
+    The share of oscillation power above :attr:`StabilityCriteria.hf_hz` (~5 Hz) is reported
+    as ``hf_power_fraction`` (Rodriguez-Seda et al. 2009) but does not decide ``stable``: the
+    delay-induced oscillations of this loop are slow (0.2-2 Hz; the finger servo is a 0.3 s
+    lag).
 
 ``passive``
     The controller plus the channel generate no energy: the energy delivered out of the two

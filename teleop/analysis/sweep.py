@@ -30,7 +30,8 @@ from teleop.config import TeleopConfig
 from teleop.errors import UserInputError
 
 __all__ = ["SweepPoint", "SweepRun", "SweepResult", "PointRunner", "ProgressFn",
-           "point_config", "run_delay_sweep", "max_stable_delay", "format_table"]
+           "point_config", "run_delay_sweep", "max_stable_delay", "format_table",
+           "result_from_json", "point_duration_s"]
 
 PointRunner = Callable[[TeleopConfig, float], RunSignals]
 ProgressFn = Callable[[int, int, "SweepRun"], None]
@@ -101,6 +102,29 @@ class SweepResult:
             "mode": self.mode, "seed": self.seed, "duration_s": self.duration_s,
             "wall_s": self.wall_s, "notes": list(self.notes),
         }
+
+
+def result_from_json(doc: dict[str, Any]) -> SweepResult:
+    """Rebuild a :class:`SweepResult` from :meth:`SweepResult.to_json` output."""
+    runs = []
+    for row in doc["runs"]:
+        point = SweepPoint(row["controller"], row["delay_s"], row["jitter_s"], row["loss"],
+                           int(row.get("seed", 0)))
+        vals = {f: row[f] for f in RunMetrics.__dataclass_fields__}
+        vals = {k: (math.nan if v is None else v) for k, v in vals.items()}
+        runs.append(SweepRun(point, RunMetrics(**vals), float(row.get("wall_s", 0.0)),
+                             bool(row.get("refine", False))))
+
+    def num(v: Any) -> float:
+        return math.inf if v is None else float(v)
+
+    brackets = tuple((c, num(lo) if lo is not None else math.nan, num(hi))
+                     for c, (lo, hi) in doc.get("measured_bracket_s", {}).items())
+    return SweepResult(tuple(runs), tuple(doc["predicted_max_stable_delay_s"].items()),
+                       tuple(doc.get("measured_max_stable_delay_s", {}).items()), brackets,
+                       doc.get("mode", "lockstep"), int(doc.get("seed", 0)),
+                       float(doc.get("duration_s", 0.0)), float(doc.get("wall_s", 0.0)),
+                       tuple(doc.get("notes", ())))
 
 
 def point_config(cfg: TeleopConfig, p: SweepPoint) -> TeleopConfig:
@@ -203,18 +227,28 @@ class _Pool:
             self._ex.shutdown()
 
 
+def default_runner(mode: str) -> PointRunner:
+    """The point runner of ``mode``: ``lockstep`` (services' lockstep runner) or ``live``."""
+    from teleop.commands import sweep as cli_sweep  # the CLI layer wires in the services
+
+    runners = {"lockstep": cli_sweep.lockstep_runner, "live": cli_sweep.live_runner}
+    if mode not in runners:
+        raise UserInputError(f"sweep mode {mode!r}: expected lockstep or live")
+    return runners[mode]
+
+
 def run_delay_sweep(
     cfg: TeleopConfig,
-    runner: PointRunner,
     delays_s: Sequence[float],
     losses: Sequence[float],
     controllers: Sequence[str],
-    *,
     mode: str = "lockstep",
     seed: int = 0,
     duration_s: float = 6.0,
-    jitter_s: float = 0.0,
     progress: ProgressFn | None = None,
+    *,
+    runner: PointRunner | None = None,
+    jitter_s: float = 0.0,
     workers: int = 1,
     refine_steps: int = 0,
     predicted: Sequence[tuple[str, float]] = (),
@@ -223,6 +257,8 @@ def run_delay_sweep(
     refine_controllers: Sequence[str] | None = None,
 ) -> SweepResult:
     """Run every (controller, delay, loss) point; classify; bracket the largest stable delay."""
+    if runner is None:
+        runner = default_runner(mode)
     if not delays_s or not losses or not controllers:
         raise UserInputError("sweep: delays, losses and controllers must each be non-empty")
     if any(d < 0 for d in delays_s) or any(not 0 <= p <= 1 for p in losses):

@@ -45,6 +45,18 @@ def _triple(src: Recording, t: Array, name: str) -> Array:
     return np.column_stack([_held(src, t, f"{name}_f{i + 1}") for i in range(3)])
 
 
+def _initial_j(rec: Recording, tank: str) -> float:
+    """A side's initial tank energy from its ledger identity at the first sample.
+
+    initial = tank + out + sent + dissipated - in - received (missing accounts count 0).
+    """
+    def first(name: str) -> float:
+        return float(np.nan_to_num(rec.column(name)[0])) if rec.has(name) else 0.0
+
+    return (first(tank) + first("port_out_j") + first("sent_j") + first("dissipated_j")
+            - first("port_in_j") - first("received_j"))
+
+
 def signals_from_recordings(master: Recording, controller: Recording, hand: Recording,
                             cfg: TeleopConfig) -> RunSignals:
     """RunSignals from the three live recordings (master time base)."""
@@ -52,10 +64,8 @@ def signals_from_recordings(master: Recording, controller: Recording, hand: Reco
     pressure = np.column_stack([_held(hand, t, f"pressure_f{i // 9 + 1}_{i % 9}")
                                 for i in range(27)])
     m_tank = master.column("tank_j")
-    h_tank = hand.column("tank_j")
-    store = controller.column("store_j")
-    initial = float(np.nan_to_num(m_tank[0]) + np.nan_to_num(h_tank[0])
-                    + np.nan_to_num(store[0]))
+    initial = _initial_j(master, "tank_j") + _initial_j(hand, "tank_j") + _initial_j(
+        controller, "store_j")
     cols = {
         "t_s": t - t[0],
         "setpoint_rad": _triple(controller, t, "setpoint_rad"),

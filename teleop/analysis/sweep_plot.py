@@ -75,22 +75,23 @@ def plot_sweep(result: SweepResult, path: Path | str) -> Path:
                 axp.plot([d for d, _ in pts], [v for _, v in pts],
                          _LOSS_STYLES[li % len(_LOSS_STYLES)], marker="o", ms=3,
                          color=_COLORS.get(c), label=f"{c}, loss {p:.0%}")
-        axp.set_yscale(scale, **({"linthresh": 1e-3} if scale == "symlog" else {}))
+        axp.set_yscale(scale, **({"linthresh": 0.1} if scale == "symlog" else {}))
         axp.set_xlabel("one-way delay [s]")
         axp.set_title(label)
         axp.grid(True, alpha=0.3)
         for c, t in result.predicted_max_stable_delay_s:
             axp.axvline(t, color=_COLORS.get(c, "k"), ls="--", lw=0.8)
-        for c, t in result.measured_max_stable_delay_s:
-            if t == t:  # not NaN
-                axp.axvline(t, color=_COLORS.get(c, "k"), ls=":", lw=0.8)
+        for c, lo, hi in result.measured_bracket_s:
+            if lo == lo and hi != float("inf"):  # a measured limit inside the grid
+                axp.axvline(lo, color=_COLORS.get(c, "k"), ls=":", lw=0.8)
     axes[0, 1].legend(fontsize=7, ncol=2)
     pred = ", ".join(f"{c} {t * 1000:.1f} ms" for c, t in result.predicted_max_stable_delay_s)
-    meas = ", ".join(f"{c} {t * 1000:.1f} ms" for c, t in result.measured_max_stable_delay_s
-                     if t == t)
-    fig.suptitle(f"delay sweep ({result.mode}, seed {result.seed}, {result.duration_s:g} s per "
-                 f"run) - largest stable one-way delay: predicted {pred or 'n/a'}; "
-                 f"measured {meas or 'n/a'} (dashed: predicted, dotted: measured)", fontsize=10)
+    meas = ", ".join(
+        f"{c} {'> ' if hi == float('inf') else ''}{lo * 1000:.1f} ms"
+        for c, lo, hi in result.measured_bracket_s if lo == lo)
+    fig.suptitle(f"delay sweep ({result.mode}, seed {result.seed}, >= {result.duration_s:g} s "
+                 f"per run)\nlargest stable one-way delay at loss 0 - predicted (dashed): "
+                 f"{pred or 'n/a'}; measured (dotted): {meas or 'n/a'}", fontsize=10)
     out = Path(path)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -71,15 +71,46 @@ def label(mask_window: Array, conds: dict[str, Array]) -> str:
     return " + ".join(name for _, name in scored[:2])
 
 
-def locate_windows(t: Array, r_nominal: Array, noise: float, conds: dict[str, Array],
-                   width_s: float = 0.05, min_len_s: float = 0.02, merge_s: float = 0.1,
-                   factor: float = 3.0, max_windows: int = 50) -> tuple[Window, ...]:
-    """Spans where the moving RMS of ``r_nominal`` exceeds ``factor`` times ``noise``."""
-    if len(t) < 3 or noise <= 0:
+def moving_mean(r: Array, width: int) -> Array:
+    """Centered moving average over ``width`` samples."""
+    width = max(1, width)
+    return np.convolve(r, np.ones(width) / width, mode="same")
+
+
+def robust_std(r: Array) -> float:
+    """1.4826 x median absolute deviation."""
+    return 1.4826 * float(np.median(np.abs(r - np.median(r)))) if len(r) else 0.0
+
+
+def excess(t: Array, r_nominal: Array, r_final: Array, valid: Array,
+           fast_s: float = 0.05, slow_s: float = 0.2, bursts: float = 3.0) -> Array:
+    """How far the nominal residual stands above the noise, per sample (in noise units).
+
+    Two views: the moving RMS over ``fast_s`` against the final model's robust noise level
+    (bursts: reversals, steps, saturation); when no burst exceeds ``bursts``, the moving mean
+    over ``slow_s`` against the spread of the final model's moving mean (a small persistent
+    bias, such as friction in a free swing).
+    """
+    dt = float(np.median(np.diff(t)))
+    noise = robust_std(r_final[valid])
+    fast = moving_rms(r_nominal, int(fast_s / dt)) / noise if noise > 0 else np.zeros(len(t))
+    sm_fin = moving_mean(r_final, int(slow_s / dt))
+    spread = robust_std(sm_fin[valid])
+    slow = (np.abs(moving_mean(r_nominal, int(slow_s / dt))) / spread if spread > 0
+            else np.zeros(len(t)))
+    fast = np.where(valid, fast, 0.0)
+    return fast if np.max(fast) > bursts else np.where(valid, slow, 0.0)
+
+
+def locate_windows(t: Array, score: Array, conds: dict[str, Array], min_len_s: float = 0.02,
+                   merge_s: float = 0.1, factor: float = 3.0,
+                   max_windows: int = 50) -> tuple[Window, ...]:
+    """Spans where ``score`` (residual over noise, see :func:`excess`) exceeds ``factor``."""
+    if len(t) < 3:
         return ()
     dt = float(np.median(np.diff(t)))
-    mr = moving_rms(r_nominal, int(width_s / dt))
-    over = mr > factor * noise
+    mr = score
+    over = mr > factor
     # merge short gaps
     idx = np.flatnonzero(over)
     if len(idx) == 0:
@@ -98,6 +129,6 @@ def locate_windows(t: Array, r_nominal: Array, noise: float, conds: dict[str, Ar
         m = np.zeros(len(t), bool)
         m[a: b + 1] = True
         out.append(Window(float(t[a]), float(t[b]), label(m, conds),
-                          float(np.max(mr[a: b + 1]) / noise)))
+                          float(np.max(mr[a: b + 1]))))
     out.sort(key=lambda w: -w.excess)
     return tuple(sorted(out[:max_windows], key=lambda w: w.t_start_s))

@@ -15,7 +15,7 @@ import importlib
 from collections.abc import Callable
 from typing import Any
 
-from teleop.commands.common import add_json_option, info, write_json
+from teleop.commands.common import add_json_option, check_output_path, info, write_json
 from teleop.errors import UserInputError
 
 #: Benchmark name -> "module:function" (lazily imported).
@@ -49,6 +49,7 @@ def _load(name: str) -> Callable[[], dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     """Run one benchmark and print/write its figures."""
     fn = _load(args.name)
+    check_output_path(args.json_path, "JSON")
     info(args, f"bench {args.name}: running...")
     figures = fn()
     if args.json_path is None:

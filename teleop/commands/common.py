@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -59,6 +60,23 @@ def write_json(path: str | None, obj: Any) -> None:
         Path(path).write_text(text + "\n", encoding="utf-8")
     except OSError as exc:
         raise UserInputError(f"{path}: cannot write JSON ({exc.strerror})") from None
+
+
+def check_output_path(path: str | Path | None, what: str) -> None:
+    """Fail early (one line) if ``path`` cannot be written, before a long run's results are
+    computed and then lost; creates missing parent directories as the writers do.  ``None``
+    and '-' (stdout) always pass."""
+    if path is None or str(path) == "-":
+        return
+    p = Path(path)
+    if p.is_dir():
+        raise UserInputError(f"{path}: is a directory, cannot write {what}")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserInputError(f"{path}: cannot write {what} ({exc.strerror})") from None
+    if not os.access(p.parent, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise UserInputError(f"{path}: cannot write {what} (permission denied)")
 
 
 def info(args: argparse.Namespace, text: str) -> None:

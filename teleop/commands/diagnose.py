@@ -12,8 +12,12 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from teleop.commands.common import add_json_option, info, nonneg_float, write_json
+
+if TYPE_CHECKING:
+    from teleop.recording import Recording
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -40,6 +44,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "ending in _rad or _m)")
     p.add_argument("--analysis", choices=("auto", "output-error", "equation-error"),
                    default="auto", help="force the analysis mode (default: automatic)")
+    p.add_argument("--skip", type=nonneg_float, default=0.0, metavar="S",
+                   help="ignore the first S seconds of every recording (e.g. a release "
+                   "transient)")
     p.add_argument("--validate", type=Path, default=None, metavar="REC",
                    help="held-out recording: report NRMSE of both models on it")
     add_json_option(p)
@@ -55,6 +62,19 @@ def _default_output(columns: tuple[str, ...], input_col: str | None) -> str:
         if c not in ("t_s", input_col) and c.endswith(("_rad", "_m")):
             return c
     raise UserInputError("--output not given and no column ending in _rad or _m to default to")
+
+
+def _skip(rec: Recording, skip_s: float) -> Recording:
+    """``rec`` without its first ``skip_s`` seconds."""
+    from teleop.errors import RecordingError
+    from teleop.recording import Recording
+
+    if skip_s <= 0:
+        return rec
+    keep = rec.t_s >= rec.t_s[0] + skip_s
+    if not keep.any():
+        raise RecordingError(f"{rec.source}: --skip {skip_s} s leaves no data")
+    return Recording(rec.columns, rec.data[keep], rec.meta, source=rec.source)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
                                  "(sim/finger_diagnose.py) is not available in this "
                                  "build") from None
         return int(diagnose_finger(args))
-    recs = [read_recording(p, allow_nan=True) for p in args.recordings]
+    recs = [_skip(read_recording(p, allow_nan=True), args.skip) for p in args.recordings]
     output = args.output_col or _default_output(recs[0].columns, args.input_col)
     for r in recs:
         r.column(output)
@@ -81,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
             r.column(args.input_col)
     nominal = parse_nominal(args.nominal, args.tolerance)
     opts = DiagnoseOptions(nominal, args.input_col, output, analysis=args.analysis)
-    val = read_recording(args.validate, allow_nan=True) if args.validate else None
+    val = (_skip(read_recording(args.validate, allow_nan=True), args.skip) if args.validate
+           else None)
     d = diagnose(recs, opts, val)
     src = " ".join(str(p) for p in args.recordings)
     info(args, to_text(d, src))

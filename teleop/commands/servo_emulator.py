@@ -97,6 +97,12 @@ def run(args: argparse.Namespace) -> int:
         raise UserInputError(f"--homes: need {len(ids)} values, got {len(homes)}")
     if not 0 <= args.return_delay_us <= 508:
         raise UserInputError("--return-delay-us must be in 0..508")
+    for flag, fault_ids in (("--overload-id", args.overload_id),
+                            ("--overheat-id", args.overheat_id)):
+        unknown = [i for i in fault_ids if i not in ids]
+        if unknown:
+            raise UserInputError(f"{flag} {unknown[0]}: no emulated servo has that ID "
+                                 f"(IDs: {','.join(map(str, ids))})")
     faults = FaultConfig(args.drop_rate, args.corrupt_rate, args.latency_ms / 1000.0,
                          tuple(args.overload_id), tuple(args.overheat_id), args.seed)
     bus = make_bus_emulator(protocol, ids, tuple(d.inversion), homes, cfg.hand.sim.object,

@@ -13,7 +13,13 @@ from __future__ import annotations
 import argparse
 import math
 
-from teleop.commands.common import add_config_options, add_json_option, config_from_args, info
+from teleop.commands.common import (
+    add_config_options,
+    add_json_option,
+    check_output_path,
+    config_from_args,
+    info,
+)
 from teleop.errors import ExperimentError
 
 EXPERIMENT_HELP = ("weight, pull-unloaded, force-step, force-blocks, position, grasp")
@@ -72,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
         rate_hz=_number(args.rate_hz, "--rate-hz"), noise=args.noise, seed=args.seed)
     check_spec(spec)
     effects = parse_effects(args.effect)
+    check_output_path(args.out, "the recording")
+    check_output_path(args.json_path, "JSON")
     cfg = config_from_args(args)
     params = default_finger_params()
     if args.driver_delay or cfg.hand.sim.command_delay:

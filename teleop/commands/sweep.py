@@ -47,7 +47,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "live: the real services over zenoh in real time")
     p.add_argument("--seed", type=int, default=None, help="sweep seed (default: session.seed)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="S",
-                   help="seconds of (simulated) time per run (default: sweep.duration_s)")
+                   help="seconds of (simulated) time per run, lengthened for long delays to "
+                   "settling + 3 round trips + 1.5 s (default: sweep.duration_s)")
     p.add_argument("--delays", default=None, metavar="LIST",
                    help="comma list of one-way master<->controller delays in s")
     p.add_argument("--losses", default=None, metavar="LIST",
@@ -202,8 +203,8 @@ def run(args: argparse.Namespace) -> int:
     predicted, notes = predicted_limits(cfg)
     runner = lockstep_runner if args.mode == "lockstep" else live_runner
     progress = _Progress(not args.no_progress)
-    result = run_delay_sweep(cfg, runner, delays, losses, controllers, mode=args.mode, seed=seed,
-                             duration_s=duration, jitter_s=jitter, progress=progress,
+    result = run_delay_sweep(cfg, delays, losses, controllers, args.mode, seed, duration,
+                             progress, runner=runner, jitter_s=jitter,
                              workers=workers, refine_steps=refine, predicted=predicted,
                              keep_signals=bool(args.rerun),
                              refine_controllers=[c for c, _ in predicted])

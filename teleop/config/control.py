@@ -67,7 +67,8 @@ class PortModelConfig:
 class TransparencyConfig:
     """What the operator should feel and where the hand should go."""
 
-    finger_enable: tuple[bool, ...] = param((True, True, True), "fingers driven by the trigger")
+    finger_enable: tuple[bool, ...] = param((True, True, True), "fingers driven by the trigger",
+                                            size=3)
     trigger_travel_m: float = param(0.025, "trigger travel mapped onto the finger range",
                                     unit="m", lo=1e-3, hi=0.2)
     open_angle_rad: float = param(0.0, "finger set-point with the trigger open", unit="rad",

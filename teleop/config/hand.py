@@ -41,8 +41,10 @@ class DynamixelConfig:
     port: str = param("/dev/ttyUSB0", "serial port of the servo bus")
     baud_rate: int = param(57142, "serial baud rate", unit="bit/s", lo=1200, hi=4500000)
     protocol: float = param(1.0, "Dynamixel protocol version", lo=1.0, hi=2.0)
-    ids: tuple[int, ...] = param((1, 2, 3, 4), "servo IDs: finger 1, 2, 3, preshape")
-    inversion: tuple[int, ...] = param((1, -1, 1, -1), "direction sign per motor")
+    ids: tuple[int, ...] = param((1, 2, 3, 4), "servo IDs: finger 1, 2, 3, preshape",
+                                  size=4)
+    inversion: tuple[int, ...] = param((1, -1, 1, -1), "direction sign per motor",
+                                        size=4)
     finger_ratio: float = param(1.42, "motor-to-joint ratio of the finger motors", lo=0.1, hi=10.0)
     preshape_ratio: float = param(1.5, "motor-to-joint ratio of the preshape motor", lo=0.1,
                                   hi=10.0)
@@ -63,7 +65,7 @@ class DynamixelConfig:
     zeros_rad: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0), "calibration zero per motor: "
                                          "raw * scale / ratio at joint angle 0 (what the "
                                          "calibration routine saves)", unit="rad",
-                                         lo=-1000.0, hi=1000.0)
+                                         lo=-1000.0, hi=1000.0, size=4)
     calibrate: bool = param(False, "run the finger calibration routine at start (step in "
                             "until the load rises, back off, save the zero)")
     calibration_load_units: float = param(40.0, "filtered load rise that marks the tendon "

@@ -32,9 +32,13 @@ def param(
     lo: float | None = None,
     hi: float | None = None,
     choices: tuple[str, ...] | None = None,
+    size: int | None = None,
 ) -> Any:
-    """Declare a documented config field with an optional range or set of choices."""
-    meta = {"doc": doc, "unit": unit, "lo": lo, "hi": hi, "choices": choices}
+    """Declare a documented config field with an optional range or set of choices.
+
+    ``size``: for a list field, the exact number of items (one per finger, per motor...).
+    """
+    meta = {"doc": doc, "unit": unit, "lo": lo, "hi": hi, "choices": choices, "size": size}
     if isinstance(default, list):
         default = tuple(default)
     return dataclasses.field(default=default, metadata=meta)
@@ -46,7 +50,11 @@ def section(cls: type[T], doc: str = "") -> Any:
 
 
 def _describe(origin: str, key: str) -> str:
-    return f"{origin}: {key}"
+    """``origin: key``, escaped when either holds a newline or other unprintable character
+    (a quoted TOML key can), so the error stays one line."""
+    def show(text: str) -> str:
+        return text if text.isprintable() else repr(text)
+    return f"{show(origin)}: {show(key)}"
 
 
 def _coerce(value: Any, tp: Any, key: str, origin: str) -> Any:
@@ -91,6 +99,9 @@ def _coerce(value: Any, tp: Any, key: str, origin: str) -> Any:
 
 def _check_range(value: Any, meta: Mapping[str, Any], key: str, origin: str) -> None:
     where = _describe(origin, key)
+    size = meta.get("size")
+    if size is not None and isinstance(value, tuple) and len(value) != size:
+        raise ConfigError(f"{where} must have {size} items, got {len(value)}")
     values = value if isinstance(value, tuple) else (value,)
     for v in values:
         if v is None:

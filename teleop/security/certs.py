@@ -85,10 +85,10 @@ def _write(path: Path, data: bytes, private: bool) -> None:
     flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
     try:
         fd = os.open(path, flags, 0o600 if private else 0o644)
+        if private:  # before the key is written: an existing file (--force) keeps its mode
+            os.fchmod(fd, 0o600)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
-        if private:
-            os.chmod(path, 0o600)
     except OSError as exc:
         raise CertError(f"{path}: cannot write ({exc.strerror})") from None
 

@@ -5,13 +5,36 @@ receives the signals its role receives (see :mod:`teleop.transport.keys`).  Ever
 message goes, at the receiver, through: arrival -> the link's delay line (delay, jitter,
 loss, duplication, reordering; seeded) -> :class:`SafeDecoder` (bad messages are counted and
 dropped) -> a sequence check (a ``seq`` not above the last accepted one is dropped and
-counted as ``stale_seq``) -> :class:`Received`, with the achieved delay measured.
+counted as ``stale_seq``) -> an energy-total check (a cumulative ``energy_total_j`` below the
+last accepted one is ``energy_decrease``, one above it by more than ``energy_jump_max_j`` is
+``energy_jump``; both dropped) -> :class:`Received`, with the achieved delay measured.
+
+Sender epochs: when a sender restarts (its liveliness token comes back), the receiver calls
+:meth:`Inbox.reset_seq`: the sequence filter forgets the old numbering and the energy check
+starts a new epoch.  The restarted sender counts its energy total from zero again; the inbox
+presents it to the service shifted by the last total it handed on, so the total the control
+layer sees stays monotone across restarts (its ``receive_total`` credits exactly the new
+sender's increments, never the old sender's energy twice).  Only a sender's very first
+message (``seq`` <= :data:`FIRST_SEQ`) is credited from zero; the first message of an epoch
+that is not (a receiver that restarted or joined a running sender, whose predecessor may
+already have credited that energy) is taken as the epoch's baseline and credits nothing:
+the channel may lose energy, never create it.
+
+After an outage (a cut link, a long burst of loss) a live sender's total has legitimately
+grown by more than the cap.  So a jump is rejected, but :data:`JUMP_REBASE_COUNT`
+consecutive jump rejections that are consistent among themselves (rising ``seq`` within
+:data:`REBASE_MAX_SEQ_GAP` of the last accepted one, totals rising by at most the cap from
+one to the next) re-baseline the epoch at the last one, which is accepted crediting nothing
+of the jump (the energy sent into the outage is lost, never created).  A forged total cannot
+do that: the sender's next genuine message is accepted and clears the run, and a forged
+``seq`` far ahead (which would also shut the genuine sender out as stale) never qualifies.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 from teleop.config.transport import LinksConfig
@@ -29,6 +52,14 @@ from teleop.transport.keys import SIGNALS, check_role, signal_spec
 from teleop.transport.safe_decoder import RejectCounts, SafeDecoder
 
 _LINK_SALT = {"master_controller": 0, "controller_hand": 1}
+
+#: Sequence number of a sender's first message (every service counts from 1).
+FIRST_SEQ = 1
+#: Consistent energy-jump rejections in a row after which the epoch is re-baselined.
+JUMP_REBASE_COUNT = 3
+#: Largest ``seq`` advance over the last accepted message that may re-baseline (an outage of
+#: 100 s at 1 kHz).
+REBASE_MAX_SEQ_GAP = 100_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,7 +140,7 @@ class Inbox:
     """Receiver side of one signal: delay line, safe decoding, stale-sequence filter."""
 
     def __init__(self, signal: str, links: LinksConfig, decoder: SafeDecoder,
-                 drop_stale: bool = True) -> None:
+                 drop_stale: bool = True, energy_jump_max_j: float = math.inf) -> None:
         self.signal = signal
         self.spec = signal_spec(signal)
         self.params = link_params(links, signal)
@@ -118,6 +149,13 @@ class Inbox:
         self._drop_stale = drop_stale
         self._last_seq: int | None = None
         self._delivered = 0
+        self.energy_jump_max_j = energy_jump_max_j
+        self._epoch_energy_j: float | None = None  # last raw total accepted in this epoch
+        self._energy_offset_j = 0.0  # added to this epoch's raw totals when handed on
+        self._presented_energy_j = 0.0  # last total handed to the service
+        self.epochs = 0  # sender restarts seen (reset_seq calls)
+        self.rebases = 0  # epochs re-baselined after an outage
+        self._jumps: list[tuple[int, float]] = []  # consecutive jump rejections (seq, total)
 
     def arrive(self, payload: bytes, t_s: float) -> None:
         """A message entered the link at ``t_s`` (its delay counts from there)."""
@@ -157,14 +195,59 @@ class Inbox:
             if self._drop_stale and self._last_seq is not None and seq <= self._last_seq:
                 self._decoder.reject("stale_seq", f"{self.signal} seq {seq} <= {self._last_seq}")
                 continue
+            msg = self._check_energy(msg)
+            if msg is None:
+                continue
             self._last_seq = seq
             out.append(Received(self.signal, msg, d.sent_t_s, d.delivered_t_s, d.delay_s))
         self._delivered += len(out)
         return out
 
+    def _check_energy(self, msg: Message) -> Message | None:
+        """The message with its total continued across sender epochs, or None (rejected)."""
+        total = msg.header.energy_total_j
+        last = self._epoch_energy_j
+        if last is None:  # first message of an epoch: continue from what was handed on
+            fresh = msg.header.seq <= FIRST_SEQ and total <= self.energy_jump_max_j
+            self._energy_offset_j = (self._presented_energy_j if fresh
+                                     else self._presented_energy_j - total)
+        elif total < last:
+            self._decoder.reject("energy_decrease",
+                                 f"{self.signal} total {total:.6g} J < {last:.6g} J")
+            return None
+        elif total - last > self.energy_jump_max_j:
+            j = self._jumps
+            seq = msg.header.seq
+            plausible = self._last_seq is None or seq - self._last_seq <= REBASE_MAX_SEQ_GAP
+            if not (j and seq > j[-1][0]
+                    and 0.0 <= total - j[-1][1] <= self.energy_jump_max_j):
+                j.clear()
+            if plausible:
+                j.append((seq, total))
+            if len(j) < JUMP_REBASE_COUNT:
+                self._decoder.reject("energy_jump", f"{self.signal} total jumps by "
+                                     f"{total - last:.6g} J > {self.energy_jump_max_j:.6g} J")
+                return None
+            # a live sender back from an outage: new baseline, the jump is not credited
+            self._energy_offset_j = self._presented_energy_j - total
+            self.rebases += 1
+        self._jumps.clear()
+        self._epoch_energy_j = total
+        self._presented_energy_j = shown = total + self._energy_offset_j
+        if shown == total:
+            return msg
+        return replace(msg, header=replace(msg.header, energy_total_j=shown))  # type: ignore[type-var]
+
     def reset_seq(self) -> None:
-        """Forget the last sequence number (the sender restarted)."""
+        """The sender restarted: forget its sequence numbers and start a new energy epoch."""
         self._last_seq = None
+        self._epoch_energy_j = None
+        self._jumps.clear()
+        self.epochs += 1
+
+    def drop_in_flight(self) -> None:
+        """Discard the messages in flight (from a sender that has been replaced)."""
+        self.state = replace(self.state, pending=())
 
     def next_release_s(self) -> float | None:
         """When the next message is due, if any is in flight."""
@@ -189,10 +272,11 @@ def check_publish(role: str, signal: str, msg: Message) -> None:
 
 
 def make_inboxes(role: str, links: LinksConfig, decoder: SafeDecoder,
-                 drop_stale: bool = True) -> dict[str, Inbox]:
+                 drop_stale: bool = True,
+                 energy_jump_max_j: float = math.inf) -> dict[str, Inbox]:
     """One :class:`Inbox` per signal ``role`` receives."""
     check_role(role)
-    return {name: Inbox(name, links, decoder, drop_stale)
+    return {name: Inbox(name, links, decoder, drop_stale, energy_jump_max_j)
             for name, spec in SIGNALS.items() if spec.receiver == role}
 
 

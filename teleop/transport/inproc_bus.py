@@ -19,8 +19,11 @@ Usage::
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 from teleop.config.schema import TeleopConfig
-from teleop.config.transport import LinksConfig
+from teleop.config.transport import LinkConfig, LinksConfig
 from teleop.messages import Message
 from teleop.transport.bus import (
     BusStats,
@@ -28,6 +31,7 @@ from teleop.transport.bus import (
     Received,
     check_publish,
     check_receive,
+    link_params,
     make_inboxes,
 )
 from teleop.transport.clock import Clock
@@ -40,23 +44,37 @@ class InProcessHub:
     """The shared medium of an in-process run: one clock, the links, the live views."""
 
     def __init__(self, links: LinksConfig, clock: Clock, session: str = "default",
-                 drop_stale: bool = True) -> None:
+                 drop_stale: bool = True, energy_jump_max_j: float = math.inf) -> None:
         self.links = links
         self.clock = clock
         self.session = check_session(session)
         self.drop_stale = drop_stale
+        self.energy_jump_max_j = energy_jump_max_j
         self._views: dict[str, InProcessBus] = {}
+        self._cut: set[str] = set()  # links cut by fault injection
+        self.cut_dropped = 0  # messages lost on cut links
 
     @classmethod
     def from_config(cls, cfg: TeleopConfig, clock: Clock) -> InProcessHub:
-        """A hub with ``cfg.links`` and ``cfg.session.name``."""
-        return cls(cfg.links, clock, cfg.session.name)
+        """A hub with ``cfg.links``, ``cfg.session.name`` and ``safety.energy_jump_max_j``."""
+        return cls(cfg.links, clock, cfg.session.name,
+                   energy_jump_max_j=cfg.safety.energy_jump_max_j)
 
     def bus(self, role: str) -> InProcessBus:
-        """The view of service ``role`` (one live view per role)."""
+        """The view of service ``role`` (one live view per role).
+
+        A role (re)joining is a new sender epoch, as when its liveliness token comes back
+        on zenoh: every other view's inboxes of signals it sends reset their sequence filter
+        and energy epoch, and drop what the previous incarnation still had in flight.
+        """
         check_role(role)
         if role in self._views:
             raise ValueError(f"the in-process bus already has a live {role!r} view")
+        for other in self._views.values():
+            for inbox in other._inboxes.values():
+                if inbox.spec.sender == role:
+                    inbox.reset_seq()
+                    inbox.drop_in_flight()
         view = InProcessBus(self, role)
         self._views[role] = view
         return view
@@ -66,8 +84,29 @@ class InProcessHub:
         times = [t for v in self._views.values() for t in v.next_release_times()]
         return min(times) if times else None
 
+    def set_link(self, link: str, cfg: LinkConfig | None) -> None:
+        """Fault injection: cut ``link`` (``None``: every message on it, both directions,
+        is lost; liveliness is unaffected) or give it new impairments ``cfg`` from now on
+        (messages already in flight keep their release times).  ``link`` is
+        ``"master_controller"`` or ``"controller_hand"``."""
+        if link not in ("master_controller", "controller_hand"):
+            raise ValueError(f"unknown link {link!r}")
+        if cfg is None:
+            self._cut.add(link)
+            return
+        self._cut.discard(link)
+        self.links = replace(self.links, **{link: cfg})
+        for view in self._views.values():
+            for inbox in view._inboxes.values():
+                if inbox.spec.link == link:
+                    inbox.params = link_params(self.links, inbox.signal)
+
     def _deliver(self, signal: str, payload: bytes, t_s: float) -> None:
-        view = self._views.get(signal_spec(signal).receiver)
+        spec = signal_spec(signal)
+        if spec.link in self._cut:
+            self.cut_dropped += 1
+            return
+        view = self._views.get(spec.receiver)
         if view is not None:  # nobody listening: the message is gone, as on a network
             view._inboxes[signal].arrive(payload, t_s)
 
@@ -87,7 +126,7 @@ class InProcessBus:
         self._hub = hub
         self._decoder = SafeDecoder(f"inproc:{role}")
         self._inboxes: dict[str, Inbox] = make_inboxes(role, hub.links, self._decoder,
-                                                       hub.drop_stale)
+                                                       hub.drop_stale, hub.energy_jump_max_j)
         self._closed = False
 
     def publish(self, signal: str, msg: Message) -> None:

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import collections
 import json
+import math
 import struct
 import sys
 import threading
@@ -103,7 +104,8 @@ class ZenohBus:
                  clock: Clock | None = None, listen: Sequence[str] | None = None,
                  connect: Sequence[str] | None = None, shared_clock: bool = True,
                  drop_stale: bool = True, gil_switch_interval_s: float | None = 1e-4,
-                 extra_config: Mapping[str, str] | None = None) -> None:
+                 extra_config: Mapping[str, str] | None = None,
+                 energy_jump_max_j: float = math.inf) -> None:
         self.role = check_role(role)
         if gil_switch_interval_s is not None and sys.getswitchinterval() > gil_switch_interval_s:
             sys.setswitchinterval(gil_switch_interval_s)
@@ -122,7 +124,8 @@ class ZenohBus:
             raise self._open_error(exc) from None
         self._decoder = SafeDecoder(f"zenoh:{role}")
         self._inboxes: dict[str, Inbox] = make_inboxes(role, links or LinksConfig(),
-                                                       self._decoder, drop_stale)
+                                                       self._decoder, drop_stale,
+                                                       energy_jump_max_j)
         self._arrivals: dict[str, collections.deque[tuple[bytes, float]]] = {
             s: collections.deque() for s in self._inboxes}
         self._data_event = threading.Event()
@@ -161,6 +164,7 @@ class ZenohBus:
     def from_config(cls, role: str, cfg: TeleopConfig, **kwargs: object) -> ZenohBus:
         """A bus for ``role`` from the ``session``, ``zenoh`` and ``links`` sections."""
         kwargs.setdefault("shared_clock", cfg.zenoh.shared_clock)
+        kwargs.setdefault("energy_jump_max_j", cfg.safety.energy_jump_max_j)
         if "extra_config" not in kwargs:  # TLS, auth and ACL when security.enabled
             from teleop.security.zenoh_secure import secure_zenoh_config
 
@@ -214,8 +218,9 @@ class ZenohBus:
             for role in list(self._reset_from):
                 self._reset_from.discard(role)
                 for i in self._inboxes.values():
-                    if i.spec.sender == role:
+                    if i.spec.sender == role:  # a new sender epoch (see bus.py)
                         i.reset_seq()
+                        i.drop_in_flight()
         queue = self._arrivals[signal]
         return inbox.arrive_and_release(_drain(queue), self._clock.now_s())
 

@@ -9,6 +9,7 @@ services log into one recording (same application and recording id) under::
     hand/finger{1,2,3}/distal_rad    hand/tank_j                  hand/port_in_j, port_out_j
     links/<link>/delay_s             hand/pressure (27 bars)      hand/drawing/*
     events (text log: passivity limiting, watchdogs, dropped messages)
+    rejects/<role>/<reason>          (messages each service's bus rejected, cumulative)
 
 Time is the ``time`` timeline (a duration: seconds since the session's epoch).
 """
@@ -73,6 +74,7 @@ def blueprint() -> rrb.Blueprint:
             rrb.BarChartView(name="pressure sensors (27)", origin="hand/pressure"),
             rrb.Spatial2DView(name="fingers", origin="hand/drawing"),
             rrb.TextLogView(name="events", origin="events"),
+            rrb.TimeSeriesView(name="rejected messages per reason", origin="rejects"),
         ),
         collapse_panels=True,
     )
@@ -111,6 +113,15 @@ def set_time(rec: rr.RecordingStream, t_s: float) -> None:
 def _scalar(rec: rr.RecordingStream, path: str, value: float) -> None:
     if math.isfinite(value):
         rec.log(path, rr.Scalars(value))
+
+
+def log_rejects(rec: rr.RecordingStream, t_s: float, role: str,
+                by_reason: Sequence[tuple[str, int]]) -> None:
+    """Cumulative counts of the messages ``role``'s bus rejected, one series per reason
+    (``malformed``, ``out_of_range``, ``stale_seq``, ``energy_jump``, ...)."""
+    set_time(rec, t_s)
+    for reason, n in by_reason:
+        _scalar(rec, f"rejects/{role}/{reason}", float(n))
 
 
 def log_master(rec: rr.RecordingStream, t_s: float, *, trigger_position_m: float,

@@ -221,9 +221,13 @@ def test_cli_prints_path_and_exits_cleanly_on_ctrl_c() -> None:
             proc.wait()
 
 
-def test_cli_rejects_bad_options_in_one_line() -> None:
-    out = subprocess.run([sys.executable, "-m", "teleop.cli", "servo-emulator", "--ids",
-                          "1,1", "--duration", "0.1"], capture_output=True, text=True,
-                         timeout=30)
+@pytest.mark.parametrize(("argv", "names"), [
+    (["--ids", "1,1"], "--ids"),
+    (["--ids", "1,2", "--overload-id", "7"], "--overload-id 7"),  # no such servo
+    (["--overheat-id", "9"], "--overheat-id 9"),
+])
+def test_cli_rejects_bad_options_in_one_line(argv: list[str], names: str) -> None:
+    out = subprocess.run([sys.executable, "-m", "teleop.cli", "servo-emulator", *argv,
+                          "--duration", "0.1"], capture_output=True, text=True, timeout=30)
     assert out.returncode == 2
-    assert out.stderr.strip().count("\n") == 0 and "--ids" in out.stderr
+    assert out.stderr.strip().count("\n") == 0 and names in out.stderr

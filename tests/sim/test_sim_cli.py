@@ -30,6 +30,21 @@ def test_bad_input_is_one_line_exit_2(argv: list[str], capsys: pytest.CaptureFix
     assert "Traceback" not in err
 
 
+@pytest.mark.parametrize("flag", ["--out", "--json"])
+def test_unwritable_output_fails_before_the_run(flag: str, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str],
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    import sim.experiments
+
+    def never(*_a: object, **_k: object) -> None:
+        raise AssertionError("the experiment ran although its output cannot be written")
+
+    monkeypatch.setattr(sim.experiments, "run_experiment", never)
+    assert main(["sim", "force-blocks", flag, str(tmp_path)]) == 2  # a directory
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a directory" in err
+
+
 def test_pull_unloaded_json(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sim", "pull-unloaded", "--units", "100", "--json", "-"]) == 0
     data = json.loads(capsys.readouterr().out)

@@ -64,8 +64,9 @@ def test_asymmetric_friction_acts_only_when_pulling() -> None:
     c = _force_step(("coulomb_friction=2",)).column("motor_angle_rad")
     assert np.allclose(a, c, atol=1e-4)
     # ...but less tracking error than symmetric Coulomb in a back-and-forth position move
+    # (the deterministic runs differ by ~8e-4 rad: identical friction would fail this)
     assert _track_rms(_position(("asymmetric_friction=2",))) < _track_rms(
-        _position(("coulomb_friction=2",))) + 1e-9
+        _position(("coulomb_friction=2",))) - 4e-4
 
 
 def test_backlash_makes_the_motor_travel_further_for_the_same_pose() -> None:

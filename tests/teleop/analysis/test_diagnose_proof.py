@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from teleop.analysis.axis_model import simulate_axis
-from teleop.analysis.diagnose import Diagnosis, DiagnoseOptions, diagnose
+from teleop.analysis.diagnose import DiagnoseOptions, Diagnosis, diagnose
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.synth import (
     INPUT_COL,
@@ -55,7 +55,7 @@ def _run(case: SynthCase, validate: SynthCase | None = None) -> Diagnosis:
 def effect_batch() -> tuple[Outcome, ...]:
     out = []
     seed = BASE_SEED
-    for i in range(PER_EFFECT):
+    for _ in range(PER_EFFECT):
         for name in EFFECT_NAMES:
             seed += 1
             case = make_case((name,), SIGNALS[(seed) % 3], seed, duration_s=DURATION_S)
@@ -115,9 +115,11 @@ def _acts_mask(o: Outcome) -> tuple[np.ndarray, np.ndarray] | None:
     rec = o.case.recording
     t, u = rec.t_s, rec.column(INPUT_COL)
     x = simulate_axis(t, u, o.case.params)
-    if name in ("coulomb_friction", "asymmetric_friction", "stiction", "backlash"):
-        v = np.gradient(x, t)
+    v = np.gradient(x, t)
+    if name in ("stiction", "backlash"):  # at rest and at reversals
         mask = np.abs(v) < 0.25 * np.sqrt(np.mean(v ** 2))
+    elif name == "asymmetric_friction":  # while moving in the positive direction
+        mask = v > 0
     elif name == "actuator_saturation":
         mask = np.abs(u) > o.case.effects.actuator_saturation
     else:
@@ -142,7 +144,7 @@ def test_windows_overlap_where_the_effect_acts() -> None:
         # windows sit where the effect acts more than the effect's share of the recording
         enriched.append(float(np.mean(acts[inside])) > float(np.mean(acts)))
     print(f"windows enriched where the effect acts: {np.mean(enriched):.1%} of {len(enriched)}")
-    assert len(enriched) >= 20 and np.mean(enriched) >= 0.8
+    assert len(enriched) >= 15 and np.mean(enriched) >= 0.8
 
 
 @pytest.mark.slow

@@ -47,6 +47,11 @@ def test_int_accepted_for_float_but_not_bool() -> None:
         ("[bogus]\nx = 1\n", "bogus is not a known key"),
         ("links = 3\n", "links must be a table"),
         ("this is not toml", "not valid TOML"),
+        ("[controller.transparency]\nfinger_enable = [true]\n",
+         "controller.transparency.finger_enable must have 3 items, got 1"),
+        ("[hand.dynamixel]\nids = [1, 2, 3]\n", "hand.dynamixel.ids must have 4 items, got 3"),
+        ("[hand.dynamixel]\nzeros_rad = [0.0, 0.0, 0.0, 0.0, 0.0]\n",
+         "hand.dynamixel.zeros_rad must have 4 items, got 5"),
     ],
 )
 def test_bad_file_names_key_and_file(tmp_path: Path, text: str, match: str) -> None:
@@ -74,3 +79,10 @@ def test_cli_missing_config_file(tmp_path: Path, capsys: pytest.CaptureFixture[s
 def test_cli_bad_set_names_set(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["config", "--set", "hand.nope=1"]) == 2
     assert "--set: hand.nope is not a known key" in capsys.readouterr().err
+
+
+def test_cli_wrong_list_length_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    # one flag per finger: a short list must not be padded silently
+    assert main(["config", "--set", "controller.transparency.finger_enable=[true]"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "finger_enable must have 3 items, got 1" in err[0]

@@ -11,8 +11,9 @@
 - ``run_s``: how long to publish; ``null``: until stdin closes (a receiver).
 - ``open_only``: only try to open the session and report;
 - ``encode_hand_command``: publish valid encoded HandCommands to angle ``float(tag)``
-  carrying the cumulative energy ``energy_j``;
-- ``token``: declare the role's liveliness token (so a service sees the role alive).
+  whose cumulative energy total grows by ``energy_j`` with every message;
+- ``token``: declare the role's liveliness token (so a service sees the role alive);
+- ``first_seq``: sequence number of the first message (default 10**12).
 
 Prints ``READY`` once subscribed, then one ``RESULT {json}`` line: the ``[key, tag]`` pairs it
 received from others (subscribed to ``teleop/<session>/**``) and the most peers it saw.
@@ -61,15 +62,16 @@ def _zenoh_config(spec: dict) -> object:  # type: ignore[type-arg]
     return zc
 
 
-def _payload(spec: dict, tag: str, seq: int) -> bytes:  # type: ignore[type-arg]
-    """``tag`` itself, or (``encode_hand_command``) a valid HandCommand to angle ``tag``."""
+def _payload(spec: dict, tag: str, seq: int, n_sent: int) -> bytes:  # type: ignore[type-arg]
+    """``tag`` itself, or (``encode_hand_command``) a valid HandCommand to angle ``tag``
+    (the ``n_sent``-th message: its energy total is ``(n_sent + 1) * energy_j``)."""
     if not spec.get("encode_hand_command"):
         return tag.encode()
     from teleop.messages import HandCommand, Header
     from teleop.transport.codec import encode
 
     angle = float(tag)
-    energy_j = float(spec.get("energy_j", 0.0))
+    energy_j = float(spec.get("energy_j", 0.0)) * (n_sent + 1)
     return encode(HandCommand(Header(seq=seq, t_s=time.monotonic(), energy_total_j=energy_j),
                               (angle, angle, angle), 0.0))
 
@@ -110,11 +112,15 @@ def main() -> int:
         threading.Timer(float(spec["run_s"]), stop.set).start()
     pubs = [(data_key(session_name, sig), tag) for sig, tag in spec.get("pub", [])]
     peers = 0
-    seq = 10**12  # far above a real sender's, so the receiver's stale-sequence filter passes it
+    # default: far above a real sender's, so the receiver's stale-sequence filter passes it;
+    # ``first_seq`` 1 makes the node a sender starting afresh (its energy total is credited)
+    seq = int(spec.get("first_seq", 10**12))
+    n_sent = 0
     while not stop.is_set():
         for key, tag in pubs:
-            session.put(key, _payload(spec, tag, seq))
+            session.put(key, _payload(spec, tag, seq, n_sent))
         seq += 1
+        n_sent += 1
         peers = max(peers, len(list(session.info.peers_zid())))
         stop.wait(0.05)
     sub.undeclare()

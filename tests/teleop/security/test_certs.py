@@ -61,6 +61,15 @@ def test_existing_files_are_not_overwritten_without_force(bundle_dir: Path) -> N
     assert (bundle_dir / "ca.pem").read_bytes() == before
 
 
+def test_force_overwrite_leaves_keys_owner_only(tmp_path: Path) -> None:
+    create_certs(tmp_path)
+    (tmp_path / "hand.key").chmod(0o644)  # an existing key someone made readable
+    old = (tmp_path / "hand.key").read_bytes()
+    create_certs(tmp_path, force=True)
+    assert stat.S_IMODE((tmp_path / "hand.key").stat().st_mode) == 0o600
+    assert (tmp_path / "hand.key").read_bytes() != old  # a new key was written
+
+
 @pytest.mark.parametrize("argv_tail, message", [
     (["{file}"], "not a directory"),
     (["{file}/sub"], "cannot create directory"),

@@ -2,7 +2,8 @@
 
 The real hand service (``teleop run hand``, simulated hand, its own process) runs with
 ``config/secure.toml``.  A stand-in controller holding the controller's credentials declares
-the controller's liveliness token (so the hand's loop starts) but sends no command.  Intruders
+the controller's liveliness token and sends hold-open commands (0 rad, no energy), so the
+hand's loop starts (it waits for the controller's first command).  Intruders
 (valid credentials of the wrong role, no credentials, a wrong password) send valid hand
 commands that close the fingers to 2.5 rad with plenty of energy, straight to the hand.  The
 hand's recording shows the commands never arrived and the fingers never moved.  Control: the
@@ -38,7 +39,11 @@ def _run_hand(tmp: Path, secure: bool, intruders: list[dict]) -> tuple[dict, lis
     p_ctrl, p_hand = _free_port(), _free_port()
     ctrl_ep, hand_ep = f"{proto}/127.0.0.1:{p_ctrl}", f"{proto}/127.0.0.1:{p_hand}"
     base = {"cert_dir": str(cert_dir), "session": SESSION, "secure": secure}
-    stand_in = _start({**base, "role": "controller", "listen": [ctrl_ep], "token": True})
+    # the hand ticks once the controller's first command arrives: in secure mode (where the
+    # intruders are shut out) the stand-in sends hold-open commands (0 rad, no energy)
+    holding = {"pub": [["hand_command", "0.0"]], "encode_hand_command": True} if secure else {}
+    stand_in = _start({**base, "role": "controller", "listen": [ctrl_ep], "token": True,
+                       **holding})
     _wait_ready(stand_in)
     argv = [sys.executable, "-m", "teleop.cli", "run", "hand", "--duration", "3",
             "--dashboard", "off", "--record", str(tmp / "rec"), "--no-realtime",
@@ -87,6 +92,7 @@ def test_intruders_cannot_move_the_hand(tmp_path: Path) -> None:
 
 
 def test_control_without_security_the_intruder_moves_the_hand(tmp_path: Path) -> None:
-    figures, _ = _run_hand(tmp_path, False, [{"role": "master"}])
+    # the intruder starts at seq 1 like a fresh controller, so its energy total is credited
+    figures, _ = _run_hand(tmp_path, False, [{"role": "master", "first_seq": 1}])
     assert figures["desired_max_rad"] == pytest.approx(float(INTRUDER_ANGLE))
     assert figures["proximal_max_rad"] > 0.05

@@ -1,0 +1,175 @@
+"""The short fault suite (what CI runs) and the watchdog behaviour it relies on, in lockstep.
+
+For every scenario: the hand stays inside its joint limits, never moves on invalid data, the
+energy balance holds, the services recover, nothing crashes.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+
+import numpy as np
+import pytest
+
+from services import faults as F
+from services.faults import BASE_OVERRIDES, SuiteResult, run_suite
+from services.lockstep import LockstepResult, run_lockstep
+from teleop.analysis.faults import FLOOD_KINDS, held_still, recovery_time_s
+from teleop.cli import main
+from teleop.config import TeleopConfig, load_config
+
+
+@pytest.fixture(scope="module")
+def cfg() -> TeleopConfig:
+    return load_config(None, list(BASE_OVERRIDES))
+
+
+@pytest.fixture(scope="module")
+def suite(cfg: TeleopConfig) -> SuiteResult:
+    logging.getLogger("teleop.transport").setLevel(logging.ERROR)
+    try:
+        return run_suite(cfg, short=True)
+    finally:
+        logging.getLogger("teleop.transport").setLevel(logging.NOTSET)
+
+
+def _by_name(suite: SuiteResult) -> dict[str, F.ScenarioResult]:
+    return {r.name: r for r in suite.results}
+
+
+def test_every_scenario_passes_every_check(suite: SuiteResult) -> None:
+    names = [r.name for r in suite.results]
+    assert names == ["controller_restart", "link_cut", "master_link_cut", "burst_loss",
+                     "dup_reorder_storm", "malformed_flood", "serial_faults"]
+    for r in suite.results:
+        assert r.ok, (r.name, r.failures)
+        assert not r.crashed
+        assert r.joint_limit_violations == 0 and r.applied_commands > 100
+        assert r.energy_violations == 0
+        assert r.min_energy_margin_j >= 0.0 or r.name == "serial_faults"  # hand-only: ledger
+        assert 0.0 <= r.recovery_s <= F.RECOVERY_MAX_S, r.name
+        assert not r.moved_on_invalid
+
+
+def test_the_flood_is_rejected_by_reason_and_moves_nothing(suite: SuiteResult) -> None:
+    r = _by_name(suite)["malformed_flood"]
+    assert r.injected == 2000  # 1000 into the hand, 1000 into the controller
+    assert r.rejected == r.injected
+    reasons = dict(r.rejects_by_reason)
+    for _, reason in FLOOD_KINDS:
+        if reason != "*":
+            assert reasons.get(reason, 0) > 0, reason
+    assert r.recovery_s == 0.0  # it never left the baseline (bit-identical set-points)
+
+
+def test_watchdogs_trip_on_outages_and_storms_are_filtered(suite: SuiteResult) -> None:
+    res = _by_name(suite)
+    assert res["controller_restart"].watchdog_trips >= 2  # hand and master, at once
+    assert res["link_cut"].watchdog_trips >= 2  # hand (no command), controller (no state)
+    assert dict(res["dup_reorder_storm"].rejects_by_reason)["stale_seq"] > 100
+    # a 2 s outage grows the sender's energy total past the per-message cap: a few messages
+    # are rejected as jumps, then the epoch is re-baselined (nothing credited) and it resumes
+    assert 0 < dict(res["link_cut"].rejects_by_reason).get("energy_jump", 0) <= 4
+
+
+def test_serial_faults_are_absorbed_by_the_retries(suite: SuiteResult) -> None:
+    r = _by_name(suite)["serial_faults"]
+    assert r.mode == "realtime" and r.injected > 5  # replies dropped or corrupted
+    reasons = dict(r.rejects_by_reason)
+    assert reasons.get("serial_no_reply", 0) > 0 and reasons.get("serial_corrupt", 0) > 0
+    assert "serial_safe_state" not in reasons  # retried, never latched safe
+
+
+def test_json_document_totals(suite: SuiteResult) -> None:
+    doc = suite.to_json()
+    assert doc["faults_run"] == 7 and doc["faults_passed"] == 7 and doc["ok"]
+    assert doc["messages_rejected"] == sum(s["rejected"] for s in doc["scenarios"])
+    assert doc["energy_violations"] == 0
+    json.dumps(doc, allow_nan=False)
+
+
+def _link_cut(cfg: TeleopConfig) -> tuple[LockstepResult, LockstepResult]:
+    sc = next(s for s in F.scenarios(True) if s.name == "link_cut")
+    base = run_lockstep(cfg, 4.0, seed=1)
+    return base, run_lockstep(cfg, 4.0, seed=1, hook=F._hook(sc, F._Probe()))
+
+
+def test_link_cut_hand_holds_master_force_ramps_out_and_back_without_a_jump(
+        cfg: TeleopConfig) -> None:
+    base, r = _link_cut(cfg)
+    t = r.t_s
+    # before the cut: identical to the baseline
+    assert np.array_equal(r.hand_setpoint_rad[t < 1.2], base.hand_setpoint_rad[t < 1.2])
+    # no hand state for the timeout: the force sent to the master ramps to zero and stays
+    ramp_done = 1.2 + 0.3 + cfg.safety.force_ramp_s
+    assert np.all(r.commanded_force_n[(t > ramp_done) & (t < 3.2)] == 0.0)
+    assert np.all(np.abs(r.displayed_force_n[(t > ramp_done + 0.05) & (t < 3.2)]) < 0.05)
+    assert base.displayed_force_n[(t > 2.0) & (t < 3.2)].min() > 5.0  # it was a real grasp
+    # no command for the timeout: the hand holds still
+    assert held_still(t, r.hand_setpoint_rad, 1.2 + 0.3, 3.19)
+    # the link returns: force and set-point come back ramped, no step larger than the
+    # fault-free run ever makes
+    after = t[1:] > 3.2
+    assert np.abs(np.diff(r.displayed_force_n))[after].max() <= \
+        np.abs(np.diff(base.displayed_force_n)).max()
+    assert np.abs(np.diff(r.hand_setpoint_rad, axis=0))[after].max() <= \
+        np.abs(np.diff(base.hand_setpoint_rad, axis=0)).max() + 1e-12
+    assert recovery_time_s(t, r.hand_setpoint_rad, base.hand_setpoint_rad, 3.2) < 0.5
+
+
+def test_safe_state_open_opens_the_hand(cfg: TeleopConfig) -> None:
+    from dataclasses import replace
+
+    open_cfg = replace(cfg, safety=replace(cfg.safety, hand_safe_state="open"))
+    _, r = _link_cut(open_cfg)
+    t = r.t_s
+    assert r.hand_setpoint_rad[t < 1.2][-1].min() > 0.5
+    assert np.all(r.hand_setpoint_rad[(t > 1.6) & (t < 3.19)] == 0.0)
+
+
+def test_recovery_time_metric() -> None:
+    t = np.arange(0.0, 2.0, 0.01)
+    ref = np.zeros((t.size, 3))
+    sp = ref.copy()
+    sp[(t >= 0.5) & (t < 1.2)] = 0.3
+    sp[(t >= 1.3) & (t < 1.32)] = 0.3  # a blip shorter than the settle time resets it
+    assert recovery_time_s(t, sp, ref, 0.5, settle_s=0.25) == pytest.approx(0.82, abs=1e-9)
+    sp[t >= 1.5] = 0.3  # never settles again
+    assert recovery_time_s(t, sp, ref, 0.5, settle_s=0.25) == float("inf")
+
+
+def test_cli_short_only_flood_json(tmp_path, capsys) -> None:  # noqa: ANN001
+    logging.getLogger("teleop.transport").setLevel(logging.ERROR)
+    try:
+        out = tmp_path / "faults.json"
+        rc = main(["faults", "--short", "--only", "malformed_flood", "--json", str(out)])
+    finally:
+        logging.getLogger("teleop.transport").setLevel(logging.NOTSET)
+    assert rc == 0
+    doc = json.loads(out.read_text())
+    assert doc["faults_run"] == 1 and doc["scenarios"][0]["rejected"] == 2000
+    assert "malformed_flood" in capsys.readouterr().out
+    assert main(["faults", "--only", "nope"]) == 2
+
+
+def test_rejections_reach_the_dashboard(tmp_path, cfg: TeleopConfig) -> None:  # noqa: ANN001
+    from rerun.chunk import RrdReader
+
+    from teleop.viz.dashboard import open_stream
+
+    sc = F.Scenario("malformed_flood", "", 0.2, 0.4, duration_s=0.6, payloads=200)
+    out = tmp_path / "flood.rrd"
+    rec = open_stream("faults-test", "save", path=out)
+    logging.getLogger("teleop.transport").setLevel(logging.ERROR)
+    try:
+        run_lockstep(cfg, 0.6, seed=1, hook=F._hook(sc, F._Probe()), rec=rec)
+    finally:
+        logging.getLogger("teleop.transport").setLevel(logging.NOTSET)
+    rec.flush()
+    rec.disconnect()
+    found = {c.entity_path.lstrip("/") for c in RrdReader(out).stream()
+             if not c.is_static and c.num_rows > 0}
+    for role in ("hand", "controller"):
+        for reason in ("malformed", "out_of_range", "energy_jump", "stale_seq"):
+            assert f"rejects/{role}/{reason}" in found
