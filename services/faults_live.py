@@ -88,7 +88,11 @@ class _Service:
     def kill(self) -> int:
         """SIGKILL (a crash of this service)."""
         self.proc.kill()
-        return self.proc.wait()
+        code = self.proc.wait()
+        if self.proc.stdin is not None:
+            with contextlib.suppress(OSError):
+                self.proc.stdin.close()
+        return code
 
     def rejects(self) -> dict[str, int]:
         """Per-reason rejections from the stats file written at exit."""
@@ -188,7 +192,6 @@ def _run_one(name: str, config: Path | None, overrides: list[str], short: bool,
         work = Path(tmp)
         epoch = time.monotonic()
         svcs = {r: _Service(r, args, work, epoch, "") for r in ("controller", "hand", "master")}
-        extra: list[_Service] = []
         flooder: subprocess.Popen[str] | None = None
         try:
             deadline = time.monotonic() + READY_TIMEOUT_S
@@ -228,8 +231,6 @@ def _run_one(name: str, config: Path | None, overrides: list[str], short: bool,
                 flooder.wait()
             for role in ("master", "hand", "controller"):
                 codes[role] = svcs[role].stop()
-            for s in extra:
-                s.stop()
         for role in ("hand", "controller"):
             for k, v in svcs[role].rejects().items():
                 rejects[k] = rejects.get(k, 0) + v

@@ -133,9 +133,10 @@ class LockstepContext:
     def restart_controller(self) -> None:
         """Kill the controller (if running) and start a fresh one on a new bus view.
 
-        The new controller counts its messages from 1 again; its peers accept them only if
-        their sequence filters are reset when a sender rejoins (the zenoh bus does that on
-        the liveliness token's return)."""
+        The new controller counts its messages (and its energy totals) from the start
+        again; the hub starts a new sender epoch when the role rejoins (as the zenoh bus does
+        on the liveliness token's return): its peers reset their sequence filters, drop what
+        the old controller still had in flight, and continue the energy totals monotone."""
         if self.controller is not None:
             self.controller.bus.close()
         self.controller = ControllerService(self.cfg, self.hub.bus("controller"),

@@ -81,10 +81,14 @@ def check_effect(name: str, value: float) -> None:
 def parse_effects(items: list[str] | tuple[str, ...]) -> EffectSet:
     """Parse repeated ``NAME=VALUE`` items into an EffectSet."""
     eff = EffectSet()
+    seen: set[str] = set()
     for item in items:
         if "=" not in item:
             raise UserInputError(f"--effect {item!r}: expected NAME=VALUE")
         name, raw = item.split("=", 1)
+        if name.strip() in seen:
+            raise UserInputError(f"--effect {name.strip()} given twice")
+        seen.add(name.strip())
         try:
             value = float(raw)
         except ValueError:

@@ -17,8 +17,14 @@ from __future__ import annotations
 
 import argparse
 import os
+from pathlib import Path
 
-from teleop.commands.common import add_config_options, config_from_args, nonneg_float
+from teleop.commands.common import (
+    add_config_options,
+    check_output_path,
+    config_from_args,
+    nonneg_float,
+)
 from teleop.commands.run import add_dashboard_option, add_realtime_option
 from teleop.errors import UserInputError
 
@@ -66,6 +72,10 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config_from_args(args)  # fail early, in one line, on a bad config
     mode, path = resolve_dashboard(args.dashboard, cfg.dashboard.mode, cfg.dashboard.path)
+    if args.record is not None:  # fail before starting anything, not after the run
+        check_output_path(Path(args.record) / "master.csv", "recordings")
+    if mode == "save":
+        check_output_path(path, "the dashboard recording")
     passthrough: list[str] = []
     if args.config is not None:
         passthrough += ["--config", str(args.config)]

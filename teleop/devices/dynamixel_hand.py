@@ -218,12 +218,10 @@ class DynamixelHand:
         self.mode = cmd.mode
         speed = [self.cfg.speed_rad_s] * 4
         for k in range(3):
-            if cmd.mode == HandMode.POSITION:
+            if cmd.mode in (HandMode.POSITION, HandMode.VELOCITY):
+                # VELOCITY is the stock driver's "velocity mode": a position move to the set-point
+                # at the configured speed (not wheel mode); the same meaning as the sim hand's.
                 self.target[k] = self.clamp(k, cmd.finger_setpoint_rad[k])
-            elif cmd.mode == HandMode.VELOCITY:
-                v = cmd.finger_setpoint_rad[k]
-                self.target[k] = self.travel[k] if v > 0 else 0.0
-                speed[k] = max(abs(v), 1e-3)
             else:  # FORCE: integral loop on the filtered load
                 err = cmd.finger_force_units[k] - self.load_filt[k]
                 self.target[k] = self.clamp(

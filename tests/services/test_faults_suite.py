@@ -173,3 +173,25 @@ def test_rejections_reach_the_dashboard(tmp_path, cfg: TeleopConfig) -> None:  #
     for role in ("hand", "controller"):
         for reason in ("malformed", "out_of_range", "energy_jump", "stale_seq"):
             assert f"rejects/{role}/{reason}" in found
+
+
+def test_controller_kill_holds_at_once_and_the_restart_resumes_without_a_jump(
+        cfg: TeleopConfig) -> None:
+    sc = next(s for s in F.scenarios(True) if s.name == "controller_restart")
+    base = run_lockstep(cfg, 3.5, seed=1)
+    r = run_lockstep(cfg, 3.5, seed=1, hook=F._hook(sc, F._Probe()))
+    t = r.t_s
+    hand_dt = 1.0 / cfg.hand.state_rate_hz
+    # liveliness gone: the hand holds from its first tick after the kill (no timeout wait),
+    # the grasp force on the trigger goes at once
+    assert held_still(t, r.hand_setpoint_rad, 2.0 + hand_dt, 2.5 - 1e-3)
+    assert np.all(r.master_force_desired_n[(t > 2.0005) & (t < 2.5)] == 0.0)
+    assert base.master_force_desired_n[(t > 2.0005) & (t < 2.5)].min() > 1.0
+    # the new controller is heard (no stale drops) and the hand blends back in
+    after = t[1:] > 2.5
+    assert np.abs(np.diff(r.hand_setpoint_rad, axis=0))[after].max() <= \
+        np.abs(np.diff(base.hand_setpoint_rad, axis=0)).max() + 1e-12
+    assert np.abs(np.diff(r.displayed_force_n))[after].max() <= \
+        np.abs(np.diff(base.displayed_force_n)).max()
+    assert recovery_time_s(t, r.hand_setpoint_rad, base.hand_setpoint_rad, 2.5) < 0.5
+    assert r.energy_generated_j == 0.0

@@ -98,3 +98,12 @@ def test_bench_sim_json(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.
     assert data["realtime_factor"] > 10.0
     assert data["hand_realtime_factor"] > 3.0
     assert all(isinstance(v, float) for v in data.values())
+
+
+def test_repeated_effect_is_refused_in_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    from teleop.cli import main
+
+    assert main(["sim", "weight", "--force-n", "9.8", "--effect", "gravity=1",
+                 "--effect", "gravity=2"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["teleop sim: error: --effect gravity given twice"]

@@ -156,13 +156,14 @@ def test_force_mode_integrates_load_error() -> None:
     assert hand.target[0] - before == pytest.approx(4e-5 * 200, rel=1e-6)
 
 
-def test_velocity_mode_moves_to_the_limit_at_the_commanded_speed() -> None:
+def test_velocity_mode_is_a_position_move_at_the_configured_speed() -> None:
     hand, bus, _ = make()
-    hand.apply(cmd((0.5, -0.5, 0.0), mode=HandMode.VELOCITY))
+    hand.apply(cmd((0.5, 5.0, -1.0), mode=HandMode.VELOCITY))
     g = bus.goal_writes[-1]
-    assert joints_of(hand, g)[0] == pytest.approx(3.6, abs=0.005)
-    assert joints_of(hand, g)[1] == pytest.approx(0.0, abs=0.005)
-    assert g[1].speed_units == round(0.5 * 1.42 / T.P1_RAD_S_PER_SPEED_UNIT)
+    assert joints_of(hand, g)[0] == pytest.approx(0.5, abs=0.005)
+    assert joints_of(hand, g)[1] == pytest.approx(3.6, abs=0.005)  # clamped to travel
+    assert joints_of(hand, g)[2] == pytest.approx(0.0, abs=0.005)
+    assert g[1].speed_units == round(hand.cfg.speed_rad_s * 1.42 / T.P1_RAD_S_PER_SPEED_UNIT)
 
 
 def test_consecutive_bus_failures_latch_the_safe_state() -> None:
