@@ -129,6 +129,8 @@ class HandService:
         """One period at ``t_s``."""
         self.events.clear()
         got = self._receive()
+        if got:  # echo for the controller's round-trip measurement
+            self.command_rx_t_s = t_s
         prev = self.wd
         self.wd = watchdog_step(self.wd, self.wd_params, t_s, got,
                                 self.bus.alive("controller"), self.dt_s)
@@ -167,7 +169,9 @@ class HandService:
         self.seq += 1
         state_msg = HandState(
             header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
-            fingers=reading.fingers, preshape_rad=reading.preshape_rad)
+            fingers=reading.fingers, preshape_rad=reading.preshape_rad,
+            echo_t_s=self.command.header.t_s if self.command is not None else -1.0,
+            echo_held_s=max(t_s - getattr(self, "command_rx_t_s", t_s), 0.0))
         self.bus.publish("hand_state", state_msg)
         if out.limited:
             if not self._was_limited:

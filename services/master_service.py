@@ -86,7 +86,11 @@ class MasterService:
                                                  reading.grip_position_m, cmd, self.dt_s)
         self.backend.apply_force(out.force_n)
         self.seq += 1
-        self.bus.publish("master_state", master_message(out, self.seq, t_s))
+        if got:  # echo for the controller's round-trip measurement
+            self.command_rx_t_s = t_s
+        echo = self.command.header.t_s if self.command is not None else -1.0
+        held = max(t_s - getattr(self, "command_rx_t_s", t_s), 0.0)
+        self.bus.publish("master_state", master_message(out, self.seq, t_s, echo, held))
         if out.limited:
             if not self._was_limited:
                 self.events.append(f"passivity layer limiting the force "

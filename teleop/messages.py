@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: echo_t_s, echo_held_s in MasterState and HandState
 N_FINGERS = 3
 N_PRESSURE = 9  # per finger: 5 proximal, 4 distal
 
@@ -50,6 +50,12 @@ class MasterState:
     header: Header
     grip_position_m: float
     grip_velocity_m_s: float
+    #: ``t_s`` of the latest ForceCommand the master had received when it sent this (the
+    #: controller's clock; negative = none yet): the controller measures the round trip
+    #: ``now - echo_t_s`` on its own clock, no clock synchronisation needed.
+    echo_t_s: float = -1.0
+    #: how long the master had held that ForceCommand when it sent this (s, its own clock)
+    echo_held_s: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +96,11 @@ class HandState:
     header: Header
     fingers: tuple[FingerState, FingerState, FingerState]
     preshape_rad: float
+    #: ``t_s`` of the latest HandCommand the hand had received (controller's clock;
+    #: negative = none yet), echoed for the controller's round-trip measurement.
+    echo_t_s: float = -1.0
+    #: how long the hand had held that HandCommand when it sent this (s, its own clock)
+    echo_held_s: float = 0.0
 
 
 Message = MasterState | ForceCommand | HandCommand | HandState

@@ -1,7 +1,8 @@
 """The diagnose pipeline for the axis model: nominal fit, residual, windows, effects, ranking.
 
-Pure functions over recordings; the result is a frozen :class:`Diagnosis` that the terminal
-report, the JSON writer and the plot consume.
+Pure functions over recordings; the result is a frozen :class:`Diagnosis`
+(:mod:`teleop.analysis.results`) that the terminal report, the JSON writer and the plot consume.
+Effect selection lives in :mod:`teleop.analysis.select`.
 
 Analysis mode: output-error (simulate and compare positions) when the fitted nominal simulation
 tracks the measurement (NRMSE below ``OE_DRIFT_NRMSE``); otherwise (a simulation that drifts or
@@ -11,111 +12,38 @@ the effort residual on the filtered, differentiated position).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
 
 import numpy as np
 
 from teleop.analysis import candidates as cand
 from teleop.analysis.axis_model import Array
 from teleop.analysis.equation_error import (
-    EE_EFFECTS,
     EEFit,
     EESignals,
     ee_apply,
-    ee_effect_fit,
     ee_fit,
     ee_signals,
     model_equation_error,
 )
-from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, scan_effect, simulate
+from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, simulate
 from teleop.analysis.model import AxisNominal
-from teleop.analysis.residual import ResidualStats, analyse_residual, noise_std
-from teleop.analysis.windows import Window, conditions, excess, locate_windows, moving_rms
+from teleop.analysis.residual import analyse_residual, noise_std
+from teleop.analysis.results import (
+    DiagnoseOptions,
+    Diagnosis,
+    EffectResult,
+    Traces,
+    Validation,
+    nrmse,
+)
+from teleop.analysis.select import select_ee, select_oe
+from teleop.analysis.windows import conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
 from teleop.recording import Recording
 
 OE_DRIFT_NRMSE = 0.7
 MIN_SAMPLES = 200
-
-
-@dataclass(frozen=True, slots=True)
-class DiagnoseOptions:
-    """Settings of one diagnosis."""
-
-    nominal: AxisNominal
-    input_col: str | None
-    output_col: str
-    analysis: str = "auto"            # auto | output-error | equation-error
-    min_delta_bic: float = 20.0
-    min_holdout_gain: float = 0.02    # held-out relative error reduction an effect must bring
-    max_effects: int = 3
-    fit_rate_hz: float = 250.0
-    max_nfev: int = 8
-    screen_top: int = 3
-    refine_top: int = 2               # candidates refitted fully before choosing each effect
-    screen_above: int = 7             # screen candidates by equation error above this many
-    noise_factor: float = 1.5         # residual rms below this many noise levels: stop adding
-
-
-@dataclass(frozen=True, slots=True)
-class EffectResult:
-    """One effect the data support."""
-
-    name: str
-    params: tuple[tuple[str, float], ...]
-    std: tuple[tuple[str, float], ...]
-    delta_bic: float
-    holdout_gain: float
-    explanation: str
-
-
-@dataclass(frozen=True, slots=True)
-class Validation:
-    """Fit on a held-out recording."""
-
-    nrmse_before: float
-    nrmse_after: float
-
-
-@dataclass(frozen=True, slots=True)
-class Traces:
-    """Signals for plotting (segments concatenated)."""
-
-    t: Array
-    measured: Array
-    nominal: Array
-    augmented: Array
-    residual: Array
-
-
-@dataclass(frozen=True, slots=True)
-class Diagnosis:
-    """Everything ``teleop diagnose`` found."""
-
-    analysis: str
-    analysis_reason: str
-    nominal_params: tuple[tuple[str, float], ...]
-    final_params: tuple[tuple[str, float], ...]
-    effects: tuple[EffectResult, ...]
-    ranking: tuple[tuple[str, float], ...]    # every candidate: (name, delta BIC) best first
-    windows: tuple[Window, ...]
-    residual_before: ResidualStats
-    residual_after: ResidualStats
-    nrmse_before: float
-    nrmse_after: float
-    validation: Validation | None
-    traces: Traces
-
-
-def nrmse(y: Array, y_hat: Array) -> float:
-    """||y - y_hat|| / ||y - mean(y)||."""
-    d = float(np.linalg.norm(y - np.mean(y)))
-    e = y_hat - y
-    if not np.all(np.isfinite(e)):
-        return math.inf
-    return float(np.linalg.norm(e)) / d if d > 0 else math.inf
 
 
 def _signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None, Array]:
@@ -196,241 +124,6 @@ def _concat_ee(sigs: Sequence[EESignals]) -> EESignals:
                      u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
 
 
-def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple[str, float], ...],
-                                                                     tuple[tuple[str, float], ...]]:
-    z = fit.value(f"effect:{name}")
-    sz = fit.std(f"effect:{name}")
-    val = cand.to_effect_value(name, z, data.scales, data.max_dt_s)
-    std = sz
-    if name == "series_compliance":  # fitted as compliance z = 1/k_s
-        std = sz / z ** 2 if z > 0 else math.inf
-    params: list[tuple[str, float]] = [(name, val)]
-    stds: list[tuple[str, float]] = [(name, std)]
-    if name == "stiction":
-        params.append(("stribeck_velocity", fit.value("stribeck_velocity")))
-    return tuple(params), tuple(stds)
-
-
-def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: ModelFit,
-                  nfev: int) -> float:
-    """Relative error reduction on the last 30 % of every segment, both fitted on the rest."""
-    masks = []
-    for s in data.segments:
-        m = np.ones(len(s.y), bool)
-        m[int(0.7 * len(s.y)):] = False
-        masks.append(m)
-    train = np.concatenate(masks)
-    test = ~train
-    y = data.y
-    errs = []
-    for f in (base, aug):
-        f2 = fit_model(data, nominal, f.as_dict(), f.effects, nfev, mask=train)
-        r = f2.y_fit - y
-        errs.append(float(np.sum(np.where(np.isfinite(r), r, 1e6)[test] ** 2)))
-    return 1.0 - errs[1] / errs[0] if errs[0] > 0 else 0.0
-
-
-def _ee_start(sig: EESignals, nominal: AxisNominal, current: ModelFit, name: str,
-              fixed_inertia: float, scales: cand.Scales) -> dict[str, float] | None:
-    """Start values from an equation-error fit of the current effects plus ``name``."""
-    effs = current.effects + (name,)
-    if any(e not in EE_EFFECTS for e in effs):
-        return None
-    grids = _ee_grids(scales)
-    base = {e: current.value(f"effect:{e}") for e in current.effects}
-    f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)), fixed_inertia)
-    start = current.as_dict()
-    extra = dict(f.extra)
-    for n, c in zip(f.names, f.coef, strict=True):
-        if n in nominal.terms:
-            start[n] = c
-    for e in effs:
-        if e in extra and e != "stiction":
-            start[f"effect:{e}"] = extra[e]
-        elif e == "sensor_offset":
-            k = f.get("stiffness") + f.get("gravity")
-            start[f"effect:{e}"] = f.get(e) / k if k else 0.0
-        else:
-            start[f"effect:{e}"] = f.get(e)
-    return start
-
-
-def _best_start(data: FitData, nominal: AxisNominal, current: ModelFit, name: str,
-                sig: EESignals, fixed_inertia: float) -> dict[str, float]:
-    """The better of a grid scan from the current fit and an equation-error start."""
-    scan = scan_effect(data, current, name)
-    starts = [{**current.as_dict(), **scan}]
-    ee = _ee_start(sig, nominal, current, name, fixed_inertia, data.scales)
-    if ee is not None:
-        starts.append(ee)
-    if len(starts) == 1:
-        return starts[0]
-    y = data.y
-    best, best_s = math.inf, starts[0]
-    for st in starts:
-        names = tuple(st)
-        r = simulate(names, tuple(st.values()), data) - y
-        rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
-        if rss < best:
-            best, best_s = rss, st
-    return best_s
-
-
-def _select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: DiagnoseOptions,
-               names: tuple[str, ...], sig: EESignals, fixed_inertia: float, noise: float
-               ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]]]:
-    current = nom
-    chosen: list[EffectResult] = []
-    ranking: list[tuple[str, float]] = []
-    remaining = list(names)
-    while remaining and len(chosen) < opts.max_effects:
-        rms = math.sqrt(current.rss / current.n)
-        if rms < opts.noise_factor * noise and chosen:
-            break  # what is left is measurement noise
-        if len(names) > opts.screen_above:
-            remaining = list(_screen(sig, nominal, tuple(remaining), fixed_inertia,
-                                     data.scales, opts.screen_top, current))
-        fits: list[tuple[float, str, ModelFit]] = []
-        for name in remaining:
-            start = _best_start(data, nominal, current, name, sig, fixed_inertia)
-            f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
-            z_neutral = cand.neutral(name)
-            if f.rss > current.rss and math.isfinite(z_neutral):
-                # a worse local optimum: start again from the current model itself
-                f = fit_model(data, nominal, {**current.as_dict(), f"effect:{name}": z_neutral},
-                              current.effects + (name,), opts.max_nfev)
-            fits.append((current.bic - f.bic, name, f))
-        fits.sort(key=lambda x: -x[0])
-        # refine the leading candidates fully before choosing (quick fits rank roughly)
-        refined = []
-        for dbic, name, f in fits[: opts.refine_top]:
-            if dbic >= opts.min_delta_bic:
-                f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
-                dbic = current.bic - f.bic
-            refined.append((dbic, name, f))
-        fits = sorted(refined + fits[opts.refine_top:], key=lambda x: -x[0])
-        if not chosen:
-            ranking = [(n, d) for d, n, _ in fits]
-        accepted = False
-        for dbic, name, f in fits:
-            if dbic < opts.min_delta_bic:
-                break
-            gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
-            if gain < opts.min_holdout_gain:
-                continue
-            p, s = _effect_params(name, f, data)
-            chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
-            current = f
-            remaining = [n for n in names if n not in current.effects]
-            accepted = True
-            break
-        if not accepted:
-            break
-    if len(chosen) > 1:
-        current, chosen = _prune(data, nominal, current, chosen, opts)
-        # report every effect's value as it stands in the final (joint) model
-        final = []
-        for e in chosen:
-            p, s = _effect_params(e.name, current, data)
-            final.append(replace(e, params=p, std=s, explanation=cand.explanation(e.name,
-                                                                                 p[0][1])))
-        chosen = final
-    return current, chosen, ranking
-
-
-def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[EffectResult],
-           opts: DiagnoseOptions) -> tuple[ModelFit, list[EffectResult]]:
-    """Backward elimination: drop an effect the others make redundant (delta BIC too small)."""
-    changed = True
-    while changed and len(chosen) > 1:
-        changed = False
-        for e in list(chosen):
-            rest = tuple(n for n in full.effects if n != e.name)
-            start = {k: v for k, v in full.as_dict().items() if k != f"effect:{e.name}"
-                     and not (e.name == "stiction" and k == "stribeck_velocity")}
-            reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
-            if reduced.bic - full.bic < opts.min_delta_bic:
-                chosen = [c for c in chosen if c.name != e.name]
-                full = reduced
-                changed = True
-                break
-    return full, chosen
-
-
-def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
-    return {"dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
-            "actuator_lag": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.2, 0.4),
-            "actuator_saturation": tuple(f * scales.umax for f in (0.3, 0.4, 0.5, 0.6, 0.7,
-                                                                  0.8, 0.9)),
-            "stiction": (0.02 * scales.velocity, 0.05 * scales.velocity,
-                         0.1 * scales.velocity)}
-
-
-def _screen(sig: EESignals, nominal: AxisNominal, names: tuple[str, ...], fixed_inertia: float,
-            scales: cand.Scales, top: int, current: ModelFit | None = None) -> tuple[str, ...]:
-    """Candidates worth an output-error fit: the best ``top`` by equation error (on top of the
-    effects already in ``current``), plus the effects equation error cannot see well (stiction,
-    backlash, series compliance)."""
-    if len(names) <= top:
-        return names
-    grids = _ee_grids(scales)
-    base_eff: dict[str, float] = {}
-    if current is not None:
-        for e in current.effects:
-            if e in EE_EFFECTS:
-                base_eff[e] = current.value(f"effect:{e}")
-    base = ee_fit(sig, nominal, base_eff, fixed_inertia)
-    scored = []
-    for name in names:
-        if name in EE_EFFECTS and name != "stiction":
-            f = ee_effect_fit(sig, nominal, base_eff, name, grids.get(name, (1.0,)),
-                              fixed_inertia)
-            scored.append((base.bic - f.bic, name))
-    scored.sort(reverse=True)
-    keep = {n for _, n in scored[:top]} | {n for n in names if n not in EE_EFFECTS
-                                           or n == "stiction"}
-    return tuple(n for n in names if n in keep)
-
-
-def _select_ee(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions, names: tuple[str, ...],
-               fixed_inertia: float, scales: cand.Scales
-               ) -> tuple[EEFit, EEFit, list[EffectResult], list[tuple[str, float]]]:
-    grids = _ee_grids(scales)
-    base: dict[str, float] = {}
-    nom = ee_fit(sig, nominal, base, fixed_inertia)
-    current = nom
-    chosen: list[EffectResult] = []
-    ranking: list[tuple[str, float]] = []
-    remaining = [n for n in names if n in EE_EFFECTS]
-    while remaining and len(chosen) < opts.max_effects:
-        fits = []
-        for name in remaining:
-            f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)), fixed_inertia)
-            fits.append((current.bic - f.bic, name, f))
-        fits.sort(key=lambda x: -x[0])
-        if not chosen:
-            ranking = [(n, d) for d, n, _ in fits]
-        if not fits or fits[0][0] < opts.min_delta_bic:
-            break
-        dbic, name, f = fits[0]
-        extra = dict(f.extra)
-        if name in extra:
-            val = extra[name] if name != "stiction" else f.get("stiction")
-        else:
-            val = f.get(name)
-        if name == "sensor_offset":
-            k = f.get("stiffness") + f.get("gravity")
-            val = val / k if k else val
-        params = [(name, val)] + ([("stribeck_velocity", extra["stiction"])]
-                                  if name == "stiction" else [])
-        chosen.append(EffectResult(name, tuple(params), ((name, math.nan),), dbic, math.nan,
-                                   cand.explanation(name, val)))
-        base = {**base, name: extra.get(name, 1.0)}
-        current = f
-        remaining = [n for d, n, _ in fits if n != name and d >= opts.min_delta_bic]
-    return nom, current, chosen, ranking
-
-
 def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
              validate: Recording | None = None) -> Diagnosis:
     """Diagnose what the nominal axis model misses in ``recordings``."""
@@ -453,7 +146,8 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     dur = float(sum(t[-1] - t[0] for t, _, _ in raw))
     dt = float(np.median(np.diff(raw[0][0])))
     scales = cand.Scales(effort or 1.0, pos, vel, umax, max(inertia, 1e-9), dur, dt)
-    segs = tuple(_decimate(t, u, y, opts.fit_rate_hz) for t, u, y in raw)
+    rate = min(opts.fit_rate_hz, max(100.0, opts.max_fit_samples / dur))
+    segs = tuple(_decimate(t, u, y, rate) for t, u, y in raw)
     max_dt = min(2e-3, float(np.median(np.diff(segs[0].t))))
     data = FitData(segs, max_dt, scales, fixed_inertia, 0.05 * vel)
     start = {n: c for n, c in zip(nom_ee.names, nom_ee.coef, strict=True)}
@@ -488,7 +182,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
     if mode == "output-error":
-        final, chosen, ranking = _select_oe(data, nominal, nom_fit, opts, names, sig,
+        final, chosen, ranking = select_oe(data, nominal, nom_fit, opts, names, sig,
                                             fixed_inertia, noise)
         r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
         before, after = nom_nrmse, nrmse(data.y, final.y_fit)
@@ -504,7 +198,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
     else:
-        nom_e, fin_e, chosen, ranking = _select_ee(sig, nominal, opts, names, fixed_inertia,
+        nom_e, fin_e, chosen, ranking = select_ee(sig, nominal, opts, names, fixed_inertia,
                                                    scales)
         ee_nom, ee_fin = nom_e.residual, fin_e.residual
         tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
@@ -545,7 +239,7 @@ def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFi
     t, u, y = _signals(rec, opts)
     if (u is None) != (not data.has_input):
         raise UserInputError(f"{rec.source}: validation recording must match the input setup")
-    seg = _decimate(t, u, y, opts.fit_rate_hz)
+    seg = _decimate(t, u, y, 1.0 / float(np.median(np.diff(data.segments[0].t))))
     vdata = FitData((seg,), data.max_dt_s, data.scales, data.fixed_inertia,
                     data.stribeck_velocity)
     x0, v0 = initial_state(t, y)

@@ -55,12 +55,12 @@ def _valid_wire(signal: str, seq: int, energy_j: float) -> list[object]:
     kind = _KIND_OF_SIGNAL[signal]
     head: list[object] = [kind, SCHEMA_VERSION, seq, 1.0, energy_j]
     if signal == "master_state":
-        return [*head, 0.01, 0.0]
+        return [*head, 0.01, 0.0, -1.0, 0.0]  # schema 2: echo_t_s, echo_held_s last
     if signal == "force_command":
         return [*head, 1.0]
     if signal == "hand_command":
         return [*head, [2.5, 2.5, 2.5], 0.0, 0, [0.0, 0.0, 0.0]]
-    return [*head, [_finger_wire(2.5) for _ in range(3)], 0.0]
+    return [*head, [_finger_wire(2.5) for _ in range(3)], 0.0, -1.0, 0.0]
 
 
 def malformed_payload(i: int, signal: str, seed: int = 0) -> tuple[str, bytes]:

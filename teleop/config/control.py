@@ -87,6 +87,39 @@ class TransparencyConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class DelayAdaptConfig:
+    """Delay-aware transparency layer of ``two-layer``: the displayed-force gain is scheduled
+    on the measured round-trip delay so that the linearised loop (design plant below) keeps a
+    gain margin at that delay (docs/controllers.md)."""
+
+    enabled: bool = param(True, "schedule the force-feedback gain on the measured round trip")
+    gain_margin: float = param(2.0, "gain margin kept at the measured delay: gain = min(1, "
+                               "critical gain / margin)", lo=1.0, hi=100.0)
+    gain_rise_per_s: float = param(4.0, "how fast the gain may rise again (it drops at once)",
+                                   unit="1/s", lo=1e-3, hi=1e6)
+    delay_window_s: float = param(0.2, "the round-trip estimate is the largest measurement "
+                                  "within about this window (rises at once, falls after it)",
+                                  unit="s", lo=1e-3, hi=100.0)
+    stale_cap_s: float = param(0.1, "a message held longer than this counts as an outage (left "
+                               "to the watchdogs), not as more delay", unit="s", lo=0.0,
+                               hi=100.0)
+    operator_mass_kg: float = param(0.05, "design plant: trigger + operator finger mass",
+                                    unit="kg", lo=1e-4, hi=10.0)
+    operator_damping_n_s_per_m: float = param(6.0, "design plant: operator finger damping "
+                                              "(relaxed grasp)", unit="N s/m", lo=0.0, hi=1e4)
+    operator_stiffness_n_per_m: float = param(500.0, "design plant: operator finger stiffness "
+                                              "(relaxed grasp)", unit="N/m", lo=1.0, hi=1e6)
+    servo_damping_nm_s_per_rad: float = param(1.6, "design plant: finger servo damping at its "
+                                              "torque limit (joint side)", unit="N m s/rad",
+                                              lo=1e-3, hi=1e3)
+    contact_stiffness_nm_per_rad: float = param(0.57, "design plant: stiffness behind the servo "
+                                                "in contact (joint side)", unit="N m/rad",
+                                                lo=1e-3, hi=1e4)
+    pressure_per_nm: float = param(1810.0, "design plant: peak pressure units per N m of "
+                                   "contact torque", lo=1e-3, hi=1e7)
+
+
+@dataclass(frozen=True, slots=True)
 class ControllerConfig:
     """Which controller runs and how."""
 
@@ -96,3 +129,5 @@ class ControllerConfig:
     tank: TankConfig = section(TankConfig, "energy tanks of the passivity layer")
     ports: PortModelConfig = section(PortModelConfig, "port models the passivity layers rely on")
     transparency: TransparencyConfig = section(TransparencyConfig, "transparency layer")
+    delay_adapt: DelayAdaptConfig = section(DelayAdaptConfig, "delay-aware force-feedback gain "
+                                            "(two-layer's transparency layer)")

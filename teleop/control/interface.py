@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from teleop.config.control import ControllerConfig
+from teleop.control.delay_adapt import DelayAdaptParams, delay_adapt_params
 from teleop.control.energy_channel import EnergyLedger
 from teleop.messages import ForceCommand, HandCommand, Header, MasterState
 
@@ -69,6 +70,8 @@ class ControlParams:
     force_per_pressure_n: float
     force_combine: str
     force_filter_hz: float
+    # delay-aware force gain (two-layer; None = off)
+    delay_adapt: DelayAdaptParams | None = None
 
 
 def control_params(cfg: ControllerConfig) -> ControlParams:
@@ -88,7 +91,8 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
         trigger_travel_m=tr.trigger_travel_m, open_angle_rad=tr.open_angle_rad,
         closed_angle_rad=tr.closed_angle_rad, map_exponent=tr.map_exponent,
         preshape_rad=tr.preshape_rad, force_per_pressure_n=tr.force_per_pressure_n,
-        force_combine=tr.force_combine, force_filter_hz=tr.force_filter_hz)
+        force_combine=tr.force_combine, force_filter_hz=tr.force_filter_hz,
+        delay_adapt=delay_adapt_params(cfg) if cfg.kind == "two-layer" else None)
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,11 +109,15 @@ class MasterOutput:
     tlc_damping_n_s_per_m: float  # tank level controller damping in use
 
 
-def master_message(out: MasterOutput, seq: int, t_s: float) -> MasterState:
-    """The MasterState message for ``out`` (the service owns ``seq`` and ``t_s``)."""
+def master_message(out: MasterOutput, seq: int, t_s: float, echo_t_s: float = -1.0,
+                   echo_held_s: float = 0.0) -> MasterState:
+    """The MasterState message for ``out`` (the service owns ``seq`` and ``t_s``);
+    ``echo_t_s``: ``t_s`` of the latest ForceCommand received (negative: none yet),
+    ``echo_held_s``: how long ago it was received."""
     return MasterState(header=Header(seq=seq, t_s=t_s, energy_total_j=out.energy_total_j),
                        grip_position_m=out.grip_position_m,
-                       grip_velocity_m_s=out.grip_velocity_m_s)
+                       grip_velocity_m_s=out.grip_velocity_m_s, echo_t_s=echo_t_s,
+                       echo_held_s=max(echo_held_s, 0.0))
 
 
 @dataclass(frozen=True, slots=True)

@@ -78,13 +78,16 @@ def lowpass(prev: float, u: float, cutoff_hz: float, dt_s: float) -> float:
 
 
 def transparency_force(state: TransparencyState, p: ControlParams,
-                       fingers: tuple[FingerState, ...] | None,
-                       dt_s: float) -> tuple[TransparencyState, float, Triple, float]:
-    """Filtered, clipped display force; returns (state, force_n, max_pressures, unfiltered)."""
+                       fingers: tuple[FingerState, ...] | None, dt_s: float,
+                       gain: float = 1.0) -> tuple[TransparencyState, float, Triple, float]:
+    """Filtered, clipped display force; returns (state, force_n, max_pressures, unfiltered).
+
+    ``gain`` scales the force before the filter (the delay-aware schedule of ``two-layer``,
+    :mod:`teleop.control.delay_adapt`; 1 elsewhere)."""
     if fingers is None:
         mp: Triple = (0.0, 0.0, 0.0)
     else:
         mp = max_pressures(fingers, p)
-    raw = combined_force_n(mp, p)
+    raw = gain * combined_force_n(mp, p)
     f = clip(lowpass(state.force_n, raw, p.force_filter_hz, dt_s), p.force_max_n)
     return TransparencyState(force_n=f), f, mp, raw

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from teleop.control.delay_adapt import DelayAdaptState, step_delay_adapt
 from teleop.control.energy_channel import EnergyLedger, TotalReceiver, receive_total
 from teleop.control.energy_tank import (
     cap_tank,
@@ -117,6 +118,7 @@ class ControllerStoreState:
     sent_to_hand_j: float = 0.0
     transparency: TransparencyState = field(default_factory=TransparencyState)
     seq: int = 0
+    adapt: DelayAdaptState = field(default_factory=DelayAdaptState)
 
 
 def init_controller(p: ControlParams) -> ControllerStoreState:
@@ -126,14 +128,17 @@ def init_controller(p: ControlParams) -> ControllerStoreState:
 
 def transparency_commands(s: ControllerStoreState, p: ControlParams,
                           master: MasterState | None, hand: HandState | None,
-                          dt_s: float) -> tuple[TransparencyState, Triple, float, Triple, float]:
-    """(filter state, set-points, display force, max pressures, unfiltered force)."""
+                          dt_s: float, gain: float = 1.0
+                          ) -> tuple[TransparencyState, Triple, float, Triple, float]:
+    """(filter state, set-points, display force, max pressures, unfiltered force);
+    ``gain``: the delay-aware force-feedback gain (:mod:`teleop.control.delay_adapt`)."""
     if master is not None:
         sp = grip_to_setpoints(master.grip_position_m, p)
     else:
         sp = (p.open_angle_rad,) * 3
     ts, force, mp, raw = transparency_force(s.transparency, p,
-                                            hand.fingers if hand is not None else None, dt_s)
+                                            hand.fingers if hand is not None else None, dt_s,
+                                            gain)
     return ts, sp, force, mp, raw
 
 
@@ -165,12 +170,13 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     store -= out
     led = replace(led, tank_j=store, received_j=led.received_j + rho * inc_m + inc_h,
                   sent_j=led.sent_j + out, dissipated_j=led.dissipated_j + diss)
-    ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s)
+    adapt = step_delay_adapt(s.adapt, p.delay_adapt, master, hand, t_s, dt_s)
+    ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s, adapt.gain)
     seq = s.seq + 1
     sent_m, sent_h = s.sent_to_master_j + to_m, s.sent_to_hand_j + to_h
     fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h)
     ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
-                              sent_to_hand_j=sent_h, transparency=ts, seq=seq)
+                              sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt)
     return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=led,
                                 max_pressure=mp, force_desired_n=raw)
 

@@ -52,11 +52,13 @@ FORCE_UNITS_RANGE = (-4096.0, 4096.0)
 PRESSURE_RANGE = (-1.0e5, 1.0e5)
 TIME_RANGE_S = (0.0, 1.0e10)
 ENERGY_RANGE_J = (0.0, 1.0e12)
+ECHO_RANGE_S = (-1.0, 1.0e10)  # echoed peer timestamp; negative = nothing received yet
+HELD_RANGE_S = (0.0, 1.0e10)  # how long the echoed message had been held
 SEQ_MAX = 2**63 - 1
 
 KINDS: dict[type, int] = {MasterState: 1, ForceCommand: 2, HandCommand: 3, HandState: 4}
 _TYPE_OF_KIND = {v: k for k, v in KINDS.items()}
-_N_FIELDS = {MasterState: 2, ForceCommand: 1, HandCommand: 4, HandState: 2}
+_N_FIELDS = {MasterState: 4, ForceCommand: 1, HandCommand: 4, HandState: 4}
 _HEAD = 5  # kind, version, seq, t_s, energy_total_j
 _FINGER_FIELDS = 6
 
@@ -70,14 +72,16 @@ def _finger_to_wire(f: FingerState) -> list[Any]:
 
 def _fields(msg: Message) -> list[Any]:
     if isinstance(msg, MasterState):
-        return [float(msg.grip_position_m), float(msg.grip_velocity_m_s)]
+        return [float(msg.grip_position_m), float(msg.grip_velocity_m_s), float(msg.echo_t_s),
+                float(msg.echo_held_s)]
     if isinstance(msg, ForceCommand):
         return [float(msg.force_n)]
     if isinstance(msg, HandCommand):
         return [[float(x) for x in msg.finger_setpoint_rad], float(msg.preshape_rad),
                 int(msg.mode), [float(x) for x in msg.finger_force_units]]
     if isinstance(msg, HandState):
-        return [[_finger_to_wire(f) for f in msg.fingers], float(msg.preshape_rad)]
+        return [[_finger_to_wire(f) for f in msg.fingers], float(msg.preshape_rad),
+                float(msg.echo_t_s), float(msg.echo_held_s)]
     raise TypeError(f"encode: not a teleop message: {type(msg).__name__}")
 
 
@@ -148,7 +152,9 @@ def _finger(v: Any, name: str) -> FingerState:
 def _body(cls: type, h: Header, b: list[Any]) -> Message:
     if cls is MasterState:
         return MasterState(h, _num(b[0], "grip_position_m", *GRIP_POSITION_RANGE_M),
-                           _num(b[1], "grip_velocity_m_s", *GRIP_VELOCITY_RANGE_M_S))
+                           _num(b[1], "grip_velocity_m_s", *GRIP_VELOCITY_RANGE_M_S),
+                           _num(b[2], "echo_t_s", *ECHO_RANGE_S),
+                           _num(b[3], "echo_held_s", *HELD_RANGE_S))
     if cls is ForceCommand:
         return ForceCommand(h, _num(b[0], "force_n", *FORCE_RANGE_N))
     if cls is HandCommand:
@@ -163,7 +169,9 @@ def _body(cls: type, h: Header, b: list[Any]) -> Message:
                            HandMode(mode), fu)  # type: ignore[arg-type]
     fingers = _list(b[0], "fingers", N_FINGERS)
     return HandState(h, tuple(_finger(f, f"fingers[{i}]") for i, f in enumerate(fingers)),  # type: ignore[arg-type]
-                     _num(b[1], "preshape_rad", *PRESHAPE_RANGE_RAD))
+                     _num(b[1], "preshape_rad", *PRESHAPE_RANGE_RAD),
+                     _num(b[2], "echo_t_s", *ECHO_RANGE_S),
+                     _num(b[3], "echo_held_s", *HELD_RANGE_S))
 
 
 def _unpack(data: Any) -> Any:

@@ -175,7 +175,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         last_fc = fc if fc is not None else last_fc
         ms, m_out = suite.step_master(ms, p, x, last_fc, DT)
         force = m_out.force_n
-        m2c.send(k, _master_msg(m_out, k, t))
+        m2c.send(k, _master_msg(m_out, k, t, last_fc))
         # controller
         mm = m2c.deliver(k)
         last_ms = mm if mm is not None else last_ms
@@ -194,7 +194,8 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
             y = hand_out.setpoint_rad
             h2c.send(k, HandState(header=Header(seq=k, t_s=t,
                                                 energy_total_j=hand_out.energy_total_j),
-                                  fingers=fingers, preshape_rad=0.0))  # type: ignore[arg-type]
+                                  fingers=fingers, preshape_rad=0.0,  # type: ignore[arg-type]
+                                  echo_t_s=_echo(last_hc)))
         # physics over the next 1 ms with the force and set-points held
         for i in range(3):
             xf[i] = servo_substep(xf[i], y[i], sc.wall_rad[i], k_s, b_s, sc.contact_stiffness,
@@ -224,7 +225,12 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
     return tr
 
 
-def _master_msg(out: object, k: int, t: float) -> object:
+def _echo(msg: object) -> float:
+    """``t_s`` of the latest command received (the echo for round-trip measurement)."""
+    return msg.header.t_s if msg is not None else -1.0  # type: ignore[attr-defined]
+
+
+def _master_msg(out: object, k: int, t: float, last_fc: object) -> object:
     from teleop.control.interface import master_message
 
-    return master_message(out, seq=k, t_s=t)  # type: ignore[arg-type]
+    return master_message(out, seq=k, t_s=t, echo_t_s=_echo(last_fc))  # type: ignore[arg-type]

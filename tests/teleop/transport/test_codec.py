@@ -106,7 +106,8 @@ def test_mutated_valid_messages_never_crash(msg: object, data: st.DataObject) ->
 def _ms(**kw: float) -> bytes:
     h = Header(seq=int(kw.pop("seq", 1)), t_s=kw.pop("t_s", 1.0),
                energy_total_j=kw.pop("energy", 0.5))
-    return encode(MasterState(h, kw.get("pos", 0.01), kw.get("vel", 0.0)))
+    return encode(MasterState(h, kw.get("pos", 0.01), kw.get("vel", 0.0), kw.get("echo", -1.0),
+                              kw.get("held", 0.0)))
 
 
 @pytest.mark.parametrize(("data", "reason"), [
@@ -117,19 +118,22 @@ def _ms(**kw: float) -> bytes:
     (_ms(energy=-1e-9), "out_of_range"),
     (_ms(energy=math.inf), "not_finite"),
     (_ms(seq=-1), "out_of_range"),
+    (_ms(echo=-1.5), "out_of_range"),
+    (_ms(echo=math.nan), "not_finite"),
+    (_ms(held=-0.001), "out_of_range"),
     (b"\x00" * (MAX_MESSAGE_BYTES + 1), "too_large"),
     (b"\xc1", "malformed"),
     (b"\x92\x01", "malformed"),  # truncated array
     (_ms() + b"\x00", "malformed"),  # trailing bytes
     (msgpack.packb({"a": 1}), "bad_shape"),
     (msgpack.packb([99, 1, 0, 0.0, 0.0, 1.0]), "unknown_kind"),
-    (msgpack.packb([1, SCHEMA_VERSION + 1, 0, 0.0, 0.0, 0.0, 0.0]), "bad_version"),
-    (msgpack.packb([1, 1, 0, 0.0, 0.0, "0.01", 0.0]), "bad_type"),
-    (msgpack.packb([1, 1, 0, 0.0, 0.0, True, 0.0]), "bad_type"),
-    (msgpack.packb([1, 1, 0, 0.0, 0.0, 0.0]), "bad_shape"),
-    (msgpack.packb([3, 1, 0, 0.0, 0.0, [0.0, 0.0], 0.0, 0, [0.0] * 3]), "bad_shape"),
-    (msgpack.packb([3, 1, 0, 0.0, 0.0, [0.0] * 3, 0.0, 7, [0.0] * 3]), "out_of_range"),
-    (msgpack.packb([3, 1, 0, 0.0, 0.0, [9.0, 0.0, 0.0], 0.0, 0, [0.0] * 3]), "out_of_range"),
+    (msgpack.packb([1, SCHEMA_VERSION + 1, 0, 0.0, 0.0, 0.0, 0.0, -1.0, 0.0]), "bad_version"),
+    (msgpack.packb([1, SCHEMA_VERSION, 0, 0.0, 0.0, "0.01", 0.0, -1.0, 0.0]), "bad_type"),
+    (msgpack.packb([1, SCHEMA_VERSION, 0, 0.0, 0.0, True, 0.0, -1.0, 0.0]), "bad_type"),
+    (msgpack.packb([1, SCHEMA_VERSION, 0, 0.0, 0.0, 0.0, 0.0]), "bad_shape"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0, 0.0], 0.0, 0, [0.0] * 3]), "bad_shape"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0] * 3, 0.0, 7, [0.0] * 3]), "out_of_range"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [9.0, 0.0, 0.0], 0.0, 0, [0.0] * 3]), "out_of_range"),
 ])
 def test_bad_messages_have_stable_reasons(data: bytes, reason: str) -> None:
     with pytest.raises(DecodeError) as info:
@@ -204,3 +208,13 @@ def test_safe_decoder_never_raises_and_counts_everything(inputs: list[bytes]) ->
     assert snap.accepted == sum(r is not None for r in results)
     assert snap.accepted + snap.rejected == len(inputs)
     assert {reason for reason, _ in snap.by_reason} <= set(REASONS)
+
+
+def test_echo_timestamp_round_trips() -> None:
+    """Schema 2: MasterState and HandState echo the peer's latest command timestamp."""
+    ms = MasterState(Header(3, 2.0, 0.1), 0.01, 0.0, echo_t_s=1.75, echo_held_s=0.002)
+    assert decode(encode(ms)) == ms
+    fs = FingerState(0.1, 0.2, 0.3, 10.0, (0.0,) * 9, (False,) * 9)
+    hs = HandState(Header(0, 0.0, 0.0), (fs, fs, fs), 0.0, echo_t_s=12.5, echo_held_s=0.02)
+    assert decode(encode(hs)) == hs
+    assert MasterState(Header(0, 0.0, 0.0), 0.0, 0.0).echo_t_s < 0  # none received yet
