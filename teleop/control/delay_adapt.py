@@ -8,15 +8,16 @@ the delay-dependent designs reviewed by Hokayem and Spong, Automatica 42(12), 20
 
 Round trip, measured on the controller's clock only (no clock synchronisation): every
 MasterState echoes the ``t_s`` of the latest ForceCommand the master had received and every
-HandState that of the latest HandCommand.  When a new message arrives at controller time
-``t_a`` its echo's age ``a = t_a - echo_t_s`` is the round trip of that leg (controller ->
-peer -> controller, including the peer's wait for its next tick); until the next one arrives
-the controller holds it, which adds the staleness ``t - t_a`` (the hand's state arrives every
-25 ms).  At controller time ``t``::
+HandState that of the latest HandCommand, with ``echo_held_s``, how long the peer had held
+that command when it sent the state (a duration on the peer's clock).  When a new message
+arrives at controller time ``t_a``, ``a = t_a - echo_t_s - held`` is the pure transport
+round trip of that leg (controller -> peer -> controller); the peer's hold ``held`` and,
+until the next message arrives, the controller's own hold ``t - t_a`` add to the loop's
+delay (the hand's state arrives every 25 ms).  At controller time ``t``::
 
-    T_meas = sum over legs (master, hand) of  a_leg + min(t - t_a,leg, c)
+    T_meas = sum over legs (master, hand) of  a + min(held, c) + min(t - t_a, c)
 
-Staleness beyond ``c = stale_cap_s`` (~ the state watchdog's timeout) is an outage, not a
+A hold beyond ``c = stale_cap_s`` (~ the state watchdog's timeout) is an outage, not a
 delay: no new information closes the loop, and the watchdogs ramp the force down; counting
 it as delay would keep the gain low for a while after every outage.  The estimate is the
 running maximum of ``T_meas`` over the last ``delay_window_s`` (two buckets of half a window,
@@ -89,8 +90,8 @@ class DelayAdaptState:
     bucket_max_s: float = -math.inf  # max of T_meas in the current half-window
     prev_bucket_max_s: float = -math.inf  # ... in the previous one
     bucket_age_s: float = 0.0
-    master_leg: LegState = field(default_factory=lambda: LegState())
-    hand_leg: LegState = field(default_factory=lambda: LegState())
+    master_leg: LegState = field(default_factory=LegState)
+    hand_leg: LegState = field(default_factory=LegState)
 
 
 def design_loop(cfg: ControllerConfig) -> DirectLoopParams:
@@ -146,19 +147,23 @@ def target_gain(p: DelayAdaptParams, round_trip_s: float) -> float:
     return min(1.0, critical_gain(p, round_trip_s) / p.gain_margin)
 
 
-def echo_age_s(msg: MasterState | HandState | None, t_s: float) -> float:
-    """``t - echo_t_s`` of the latest message (inf when nothing is echoed yet)."""
+def echo_age_s(msg: MasterState | HandState | None, t_s: float, stale_cap_s: float) -> float:
+    """Round trip of the echoed command at ``t_s``: ``t - echo_t_s`` with the peer's hold
+    capped at ``stale_cap_s`` (inf when nothing is echoed yet)."""
     if msg is None or not math.isfinite(msg.echo_t_s) or msg.echo_t_s < 0.0:
         return math.inf
-    return max(t_s - msg.echo_t_s, 0.0)
+    held = msg.echo_held_s if math.isfinite(msg.echo_held_s) else 0.0
+    held = max(held, 0.0)
+    return max(t_s - msg.echo_t_s - held, 0.0) + min(held, stale_cap_s)
 
 
 def step_leg(leg: LegState, msg: MasterState | HandState | None, t_s: float,
              stale_cap_s: float) -> tuple[LegState, float]:
-    """Register a new message (a new ``t_s``); return the leg's round trip ``a + min(t - t_a,
-    c)`` (inf before the first echo)."""
+    """Register a new message (a new ``t_s``); return the leg's round trip ``a + min(held, c)
+    + min(t - t_a, c)`` (inf before the first echo)."""
     if msg is not None and msg.header.t_s != leg.key_t_s:
-        leg = LegState(key_t_s=msg.header.t_s, age_s=echo_age_s(msg, t_s), arrival_s=t_s)
+        leg = LegState(key_t_s=msg.header.t_s, age_s=echo_age_s(msg, t_s, stale_cap_s),
+                       arrival_s=t_s)
     if not math.isfinite(leg.age_s):
         return leg, math.inf
     return leg, leg.age_s + min(max(t_s - leg.arrival_s, 0.0), stale_cap_s)

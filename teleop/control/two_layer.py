@@ -6,8 +6,9 @@ as a monotone running total, then the desired force is limited (Franken's limite
 ``H - H_min``, hard guard against ``H``), plus the tank level controller's damping.
 Controller: credits the increases of both incoming totals to its store, forwards
 ``gamma * store`` split ``s : 1 - s`` to hand and master as running totals, and runs the
-transparency layer.  Hand side: passive set-position modulation
-(:mod:`teleop.control.passivity_layer`) against its own tank.
+transparency layer with the delay-aware force gain of :mod:`teleop.control.delay_adapt`
+(round trip measured from the echoed timestamps; full gain at small delays).  Hand side:
+passive set-position modulation (:mod:`teleop.control.passivity_layer`) against its own tank.
 
 See :mod:`teleop.control.energy_tank` and ``docs/controllers.md`` for the equations.
 """

@@ -165,6 +165,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
     force = 0.0
     net_out = 0.0
     last_fc = last_ms = last_hs = last_hc = None
+    fc_rx_t = hc_rx_t = 0.0  # when the latest command arrived (echo hold)
     tr = Trace()
     hand_out = None
     m_out = None
@@ -175,7 +176,9 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         last_fc = fc if fc is not None else last_fc
         ms, m_out = suite.step_master(ms, p, x, last_fc, DT)
         force = m_out.force_n
-        m2c.send(k, _master_msg(m_out, k, t, last_fc))
+        if fc is not None:
+            fc_rx_t = t
+        m2c.send(k, _master_msg(m_out, k, t, last_fc, t - fc_rx_t))
         # controller
         mm = m2c.deliver(k)
         last_ms = mm if mm is not None else last_ms
@@ -187,6 +190,8 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         # hand side at its own rate
         hc = c2h.deliver(k)
         last_hc = hc if hc is not None else last_hc
+        if hc is not None:
+            hc_rx_t = t
         if k % sc.hand_every == 0:
             fingers = tuple(finger_state(xf[i], max(0.0, xf[i] - sc.wall_rad[i]), sc,
                                          k_s * (y[i] - xf[i])) for i in range(3))
@@ -195,7 +200,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
             h2c.send(k, HandState(header=Header(seq=k, t_s=t,
                                                 energy_total_j=hand_out.energy_total_j),
                                   fingers=fingers, preshape_rad=0.0,  # type: ignore[arg-type]
-                                  echo_t_s=_echo(last_hc)))
+                                  echo_t_s=_echo(last_hc), echo_held_s=t - hc_rx_t))
         # physics over the next 1 ms with the force and set-points held
         for i in range(3):
             xf[i] = servo_substep(xf[i], y[i], sc.wall_rad[i], k_s, b_s, sc.contact_stiffness,
@@ -230,7 +235,8 @@ def _echo(msg: object) -> float:
     return msg.header.t_s if msg is not None else -1.0  # type: ignore[attr-defined]
 
 
-def _master_msg(out: object, k: int, t: float, last_fc: object) -> object:
+def _master_msg(out: object, k: int, t: float, last_fc: object, held_s: float) -> object:
     from teleop.control.interface import master_message
 
-    return master_message(out, seq=k, t_s=t, echo_t_s=_echo(last_fc))  # type: ignore[arg-type]
+    return master_message(out, seq=k, t_s=t, echo_t_s=_echo(last_fc),  # type: ignore[arg-type]
+                          echo_held_s=held_s)
