@@ -149,12 +149,16 @@ def target_gain(p: DelayAdaptParams, round_trip_s: float) -> float:
 
 def echo_age_s(msg: MasterState | HandState | None, t_s: float, stale_cap_s: float) -> float:
     """Round trip of the echoed command at ``t_s``: ``t - echo_t_s`` with the peer's hold
-    capped at ``stale_cap_s`` (inf when nothing is echoed yet)."""
+    capped at ``stale_cap_s`` (inf when nothing is echoed yet, or when the echo is
+    implausible: from the future, e.g. a timestamp of a previous controller process)."""
     if msg is None or not math.isfinite(msg.echo_t_s) or msg.echo_t_s < 0.0:
         return math.inf
     held = msg.echo_held_s if math.isfinite(msg.echo_held_s) else 0.0
     held = max(held, 0.0)
-    return max(t_s - msg.echo_t_s - held, 0.0) + min(held, stale_cap_s)
+    transport = t_s - msg.echo_t_s - held
+    if transport < -1e-3:
+        return math.inf
+    return max(transport, 0.0) + min(held, stale_cap_s)
 
 
 def step_leg(leg: LegState, msg: MasterState | HandState | None, t_s: float,

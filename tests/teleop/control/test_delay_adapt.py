@@ -91,6 +91,8 @@ def test_round_trip_measured_from_echoes(setup) -> None:  # type: ignore[no-unty
     assert s2.round_trip_s == pytest.approx(0.7 + 2 * 0.03)
     s3 = step_delay_adapt(s2, p, m, h, 12.0, 1.97)
     assert s3.round_trip_s == pytest.approx(0.7 + 2 * c)
+    future = step_delay_adapt(DelayAdaptState(), p, _ms(9.9, 10.5), h, 10.0, 1e-3)
+    assert math.isinf(future.round_trip_s)  # an echo from the future is not trusted
 
 
 def test_estimate_window_and_gain_rate_limits(setup) -> None:  # type: ignore[no-untyped-def]
