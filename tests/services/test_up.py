@@ -88,20 +88,19 @@ def test_recordings_show_the_grasp_and_the_energy_balance(
     c = read_recording(rec_dir / "controller.csv")
     h = read_recording(rec_dir / "hand.csv")
     assert len(m) > 4000 and len(c) > 4000 and len(h) > 150  # 1 kHz, 1 kHz, 40 Hz, ~5 s
-    # the virtual operator's script: wait 0.5 s, close over 1 s, hold 2 s, release over 1 s; it
-    # closes until the grasp pushes back.  Windows come from the trigger itself (not fixed
-    # times), so a slow start-up on a loaded machine does not shift them.
+    # the virtual operator's script, in the master's own time (exact: the master runs it):
+    # wait 0.5 s, close over 1 s, hold 2 s, release over 1 s; it closes until the grasp pushes
+    # back.  The hand is judged on the settled second half of the hold, so a slow start on a
+    # loaded machine (or a transient while the controller's delay estimate settles) does not
+    # decide the outcome.
     t0 = m.t_s[0]
     x = m.column("trigger_position_m")
     before_m = m.t_s < t0 + 0.4
-    closed = x > 0.8 * x.max()
-    t_closed, t_opening = m.t_s[closed][0], m.t_s[closed][-1]
-    assert t_opening - t_closed > 1.0  # the hold lasted (script: 2 s)
-    hold_m = (m.t_s > t_closed) & (m.t_s < t_opening)
+    hold_m = (m.t_s > t0 + 1.8) & (m.t_s < t0 + 3.4)
     assert x[before_m].max() == 0.0 and np.median(x[hold_m]) > 0.005
     # ... and the fingers close on the object: they flex and the tactile sensors load up
     before_h = h.t_s < t0 + 0.5
-    hold_h = (h.t_s > t_closed + 0.5) & (h.t_s < t_opening)
+    hold_h = (h.t_s > t0 + 2.5) & (h.t_s < t0 + 3.4)
     assert before_h.sum() >= 1 and hold_h.sum() >= 20, (h.t_s[:3], t0)
     flex = h.column("proximal_angle_rad_f1") + h.column("distal_angle_rad_f1")
     assert flex[hold_h].mean() > flex[before_h].mean() + 0.2
