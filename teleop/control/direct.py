@@ -15,7 +15,7 @@ from dataclasses import replace
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.energy_tank import port_work_j, split_work
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
-from teleop.control.passivity_layer import dissipation_lower_bound_j, spring_energy_j
+from teleop.control.passivity_layer import spring_energy_j
 from teleop.control.transparency_layer import clip
 from teleop.control.two_layer import (
     ControllerStoreState,
@@ -23,8 +23,8 @@ from teleop.control.two_layer import (
     MasterPortState,
     desired_setpoints,
     make_commands,
-    measure_hand,
     measure_master,
+    sample_hand_port,
     transparency_commands,
 )
 from teleop.messages import FingerState, ForceCommand, HandCommand, HandState, MasterState
@@ -75,11 +75,8 @@ def init_hand(p: ControlParams) -> HandPortState:
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
     """Pass the commanded set-points through; account the modelled port energy."""
-    x = measure_hand(s, fingers)
-    y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
+    x, y_prev, d_j = sample_hand_port(s, p, fingers, dt_s)
     k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm
-    d_j = (dissipation_lower_bound_j(x, s.x_prev, p.servo_damping_nm_s_per_rad, dt_s)
-           if s.x_prev is not None else 0.0)
     y = desired_setpoints(command, y_prev)
     e = spring_energy_j(y, x, k, tmax) - spring_energy_j(y_prev, x, k, tmax) - d_j
     led = s.ledger

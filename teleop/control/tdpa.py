@@ -33,7 +33,6 @@ from teleop.control.energy_tank import (
 )
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
 from teleop.control.passivity_layer import (
-    dissipation_lower_bound_j,
     pspm_project,
     spring_energy_j,
 )
@@ -44,8 +43,8 @@ from teleop.control.two_layer import (
     MasterPortState,
     desired_setpoints,
     make_commands,
-    measure_hand,
     measure_master,
+    sample_hand_port,
     slew,
     transparency_commands,
 )
@@ -113,11 +112,8 @@ def init_hand(p: ControlParams) -> HandPortState:
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
     """Passivity observer + set-point modulation at the hand port."""
-    x = measure_hand(s, fingers)
-    y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
+    x, y_prev, d_j = sample_hand_port(s, p, fingers, dt_s)
     k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm
-    d_j = (dissipation_lower_bound_j(x, s.x_prev, p.servo_damping_nm_s_per_rad, dt_s)
-           if s.x_prev is not None else 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     led = s.ledger
     budget, diss = cap_tank(led.tank_j + inc, p.max_j)

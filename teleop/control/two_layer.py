@@ -207,6 +207,17 @@ def measure_hand(s: HandPortState, fingers: tuple[FingerState, ...]) -> Triple:
                  for i, v in enumerate(vals))
 
 
+def sample_hand_port(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
+                     dt_s: float) -> tuple[Triple, Triple, float]:
+    """One hand-port sample: measured angles ``x``, the previous set-point (``x`` at the first
+    sample) and the energy the servo damping dissipated at least since the last sample."""
+    x = measure_hand(s, fingers)
+    y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
+    d_j = (dissipation_lower_bound_j(x, s.x_prev, p.servo_damping_nm_s_per_rad, dt_s)
+           if s.x_prev is not None else 0.0)
+    return x, y_prev, d_j
+
+
 def desired_setpoints(command: HandCommand | None, hold: Triple) -> Triple:
     """The commanded set-points (position mode, finite) or ``hold``."""
     if command is None or command.mode != HandMode.POSITION:
@@ -227,10 +238,7 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
     """One hand-side sample: dissipation credit, quanta, set-position modulation."""
     led = s.ledger
-    x = measure_hand(s, fingers)
-    y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
-    d_j = (dissipation_lower_bound_j(x, s.x_prev, p.servo_damping_nm_s_per_rad, dt_s)
-           if s.x_prev is not None else 0.0)
+    x, y_prev, d_j = sample_hand_port(s, p, fingers, dt_s)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j + d_j + inc, p.max_j)
     send = quantum_j(tank, p.reserve_j, p.transfer_fraction)
