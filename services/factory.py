@@ -46,11 +46,9 @@ def _sim_hand(cfg: TeleopConfig) -> HandBackend:
 
 
 def _dynamixel_hand(cfg: TeleopConfig) -> HandBackend:
-    module = importlib.import_module("teleop.devices.dynamixel_hand")
-    builder = getattr(module, "build_dynamixel_hand", None)
-    if builder is not None:
-        return builder(cfg.hand)
-    return module.DynamixelHand(cfg.hand.dynamixel)
+    from teleop.devices.dynamixel_hand import build_dynamixel_hand
+
+    return build_dynamixel_hand(cfg.hand)
 
 
 def build_master(cfg: TeleopConfig) -> MasterBackend:

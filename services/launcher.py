@@ -25,6 +25,7 @@ import uuid
 from pathlib import Path
 
 from teleop.config import TeleopConfig
+from teleop.errors import UserInputError
 
 START_ORDER = ("controller", "hand", "master")
 STOP_ORDER = ("master", "hand", "controller")
@@ -186,7 +187,11 @@ class Launcher:
         t0 = time.monotonic()
         self._start_viewer()
         if self.mode == "save":
-            self._parts_dir().mkdir(parents=True, exist_ok=True)
+            try:
+                self._parts_dir().mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise UserInputError(f"{self.path}: cannot write the dashboard recording "
+                                     f"({exc.strerror})") from None
         ok = True
         interrupted = False
         try:

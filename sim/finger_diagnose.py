@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from sim.finger import weight_equilibrium
 from sim.params import FingerParams, default_finger_params
 from teleop.effects import EffectSet
+from teleop.recording import Recording
 
 Array = NDArray[np.float64]
 
@@ -60,6 +61,23 @@ class FingerStaticModel:
         return np.asarray(out) + effects.sensor_offset
 
 
+DYNAMIC_COLUMNS = ("motor_cmd_units", "setpoint_rad", "motor_angle_rad")
+"""Columns only a dynamic finger recording (``teleop sim force-step|force-blocks|position``) has."""
+
+
+def _require_static(path: object, rec: Recording) -> None:
+    """Refuse, at once and in one line, a dynamic recording (the model is the static one)."""
+    from teleop.errors import RecordingError
+
+    exp = rec.meta_value("experiment")
+    if exp is not None or any(c in rec.columns for c in DYNAMIC_COLUMNS):
+        what = f"a dynamic '{exp}' recording" if exp else "a dynamic recording"
+        raise RecordingError(
+            f"{path}: --model finger supports static weight recordings (one equilibrium per "
+            f"row: tendon_force_n -> proximal_angle_rad), not {what}; use --model axis "
+            "--input motor_cmd_units --output motor_angle_rad")
+
+
 def diagnose_finger(args: argparse.Namespace) -> int:
     """``teleop diagnose REC --model finger``: static weight recordings against the finger."""
     from teleop.analysis.generic import diagnose_model
@@ -68,6 +86,8 @@ def diagnose_finger(args: argparse.Namespace) -> int:
     from teleop.recording import read_recording
 
     recs = [read_recording(p, allow_nan=False) for p in args.recordings]
+    for p, r in zip(args.recordings, recs, strict=True):
+        _require_static(p, r)
     u_col = args.input_col or "tendon_force_n"
     y_col = args.output_col or "proximal_angle_rad"
     u = np.concatenate([r.column(u_col) for r in recs])

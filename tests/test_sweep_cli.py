@@ -21,6 +21,8 @@ from teleop.recording import Recording
     (["--losses", "1.5"], "--losses: loss probabilities must be within [0, 1]"),
     (["--controllers", "two-layer,bogus"], "unknown controller 'bogus'"),
     (["--set", "nope.key=1"], "nope"),
+    (["--json", "."], "is a directory"),  # refused before the runs, not after them
+    (["--rerun", "."], "is a directory"),
 ])
 def test_bad_input_is_one_line_exit_2(argv: list[str], needle: str, capsys) -> None:
     assert main(["sweep", "--no-progress", *argv]) == 2

@@ -218,7 +218,9 @@ def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = Eff
                 else:
                     s = 1.0 if v > 0 else (-1.0 if v < 0 else (1.0 if force - k * x > 0
                                                                 else -1.0))
-                level = fc + fs * exp(-(v / vs) ** 2) + (fa if s > 0 else 0.0)
+                q = v / vs  # Stribeck term; beyond |q| = 30 it is below 1e-390: zero
+                level = fc + (fs * exp(-q * q) if -30.0 < q < 30.0 else 0.0) + (
+                    fa if s > 0 else 0.0)
                 fr = force - level * s
                 vn = p10 * x + p11 * v + g1 * fr
                 if vn * s < 0.0:
@@ -238,7 +240,7 @@ def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = Eff
                 v = vn
             else:
                 x, v = p00 * x + p01 * v + g0 * force, p10 * x + p11 * v + g1 * force
-        if not -big < x < big:
+        if not (-big < x < big and -big < v < big):
             out[i + 1:] = math.nan
             break
         out[i + 1] = x

@@ -21,6 +21,11 @@ from teleop.analysis.model import AxisNominal
 from teleop.effects import EffectSet
 
 
+NUMERIC_FAILURES = (OverflowError, ZeroDivisionError, ValueError, FloatingPointError,
+                    np.linalg.LinAlgError)
+"""Exceptions a candidate's simulation or fit may raise on absurd parameters."""
+
+
 @dataclass(frozen=True, slots=True)
 class Segment:
     """One recording on the output-error fit grid."""
@@ -119,8 +124,12 @@ def simulate(names: tuple[str, ...], theta: Array | tuple[float, ...], data: Fit
     """Simulated measurement of every segment, concatenated."""
     p, eff = build(names, theta, data)
     vals = dict(zip(names, (float(v) for v in theta), strict=True))
-    out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s)
-           for i, s in enumerate(data.segments)]
+    try:
+        out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s)
+               for i, s in enumerate(data.segments)]
+    except NUMERIC_FAILURES:
+        # a parameter vector the simulation cannot integrate is as bad as a divergent one
+        return np.full(sum(len(s.t) for s in data.segments), math.nan)
     return np.concatenate(out)
 
 

@@ -10,7 +10,8 @@ import numpy as np
 
 from teleop.analysis import candidates as cand
 from teleop.analysis.equation_error import EE_EFFECTS, EEFit, EESignals, ee_effect_fit, ee_fit
-from teleop.analysis.fit import FitData, ModelFit, fit_model, scan_effect, simulate
+from teleop.analysis.fit import (NUMERIC_FAILURES, FitData, ModelFit, fit_model, scan_effect,
+                                 simulate)
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.results import DiagnoseOptions, EffectResult
 
@@ -111,21 +112,28 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
                                      data.scales, opts.screen_top, current))
         fits: list[tuple[float, str, ModelFit]] = []
         for name in remaining:
-            start = _best_start(data, nominal, current, name, sig, fixed_inertia)
-            f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
-            z_neutral = cand.neutral(name)
-            if f.rss > current.rss and math.isfinite(z_neutral):
-                # a worse local optimum: start again from the current model itself
-                f = fit_model(data, nominal, {**current.as_dict(), f"effect:{name}": z_neutral},
-                              current.effects + (name,), opts.max_nfev)
+            try:
+                start = _best_start(data, nominal, current, name, sig, fixed_inertia)
+                f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
+                z_neutral = cand.neutral(name)
+                if f.rss > current.rss and math.isfinite(z_neutral):
+                    # a worse local optimum: start again from the current model itself
+                    f = fit_model(data, nominal, {**current.as_dict(),
+                                                  f"effect:{name}": z_neutral},
+                                  current.effects + (name,), opts.max_nfev)
+            except NUMERIC_FAILURES:
+                continue  # a candidate whose fit fails numerically is disqualified
             fits.append((current.bic - f.bic, name, f))
         fits.sort(key=lambda x: -x[0])
         # refine the leading candidates fully before choosing (quick fits rank roughly)
         refined = []
         for dbic, name, f in fits[: opts.refine_top]:
             if dbic >= opts.min_delta_bic:
-                f = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
-                dbic = current.bic - f.bic
+                try:
+                    f2 = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
+                    f, dbic = f2, current.bic - f2.bic
+                except NUMERIC_FAILURES:
+                    pass  # keep the quick fit
             refined.append((dbic, name, f))
         fits = sorted(refined + fits[opts.refine_top:], key=lambda x: -x[0])
         if not chosen:
@@ -134,7 +142,10 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
         for dbic, name, f in fits:
             if dbic < opts.min_delta_bic:
                 break
-            gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
+            try:
+                gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
+            except NUMERIC_FAILURES:
+                continue
             if gain < opts.min_holdout_gain:
                 continue
             p, s = _effect_params(name, f, data)
@@ -167,7 +178,10 @@ def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[Eff
             rest = tuple(n for n in full.effects if n != e.name)
             start = {k: v for k, v in full.as_dict().items() if k != f"effect:{e.name}"
                      and not (e.name == "stiction" and k == "stribeck_velocity")}
-            reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
+            try:
+                reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
+            except NUMERIC_FAILURES:
+                continue  # cannot test this removal: keep the effect
             if reduced.bic - full.bic < opts.min_delta_bic:
                 chosen = [c for c in chosen if c.name != e.name]
                 full = reduced
@@ -202,8 +216,11 @@ def _screen(sig: EESignals, nominal: AxisNominal, names: tuple[str, ...], fixed_
     scored = []
     for name in names:
         if name in EE_EFFECTS and name != "stiction":
-            f = ee_effect_fit(sig, nominal, base_eff, name, grids.get(name, (1.0,)),
-                              fixed_inertia)
+            try:
+                f = ee_effect_fit(sig, nominal, base_eff, name, grids.get(name, (1.0,)),
+                                  fixed_inertia)
+            except NUMERIC_FAILURES:
+                continue
             scored.append((base.bic - f.bic, name))
     scored.sort(reverse=True)
     keep = {n for _, n in scored[:top]} | {n for n in names if n not in EE_EFFECTS
@@ -224,7 +241,13 @@ def select_ee(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions, names
     while remaining and len(chosen) < opts.max_effects:
         fits = []
         for name in remaining:
-            f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)), fixed_inertia)
+            try:
+                f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)),
+                                  fixed_inertia)
+            except NUMERIC_FAILURES:
+                continue  # disqualified
+            if not math.isfinite(f.bic):
+                continue
             fits.append((current.bic - f.bic, name, f))
         fits.sort(key=lambda x: -x[0])
         if not chosen:

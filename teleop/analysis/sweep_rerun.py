@@ -31,7 +31,10 @@ def log_sweep(result: SweepResult, path: Path | str) -> Path:
     except OSError as exc:
         raise UserInputError(f"{out}: cannot create directory ({exc.strerror})") from None
     rec = rr.RecordingStream("teleop_sweep")
-    rec.save(str(out))
+    try:
+        rec.save(str(out))
+    except (RuntimeError, OSError) as exc:
+        raise UserInputError(f"{out}: cannot write the rerun log ({exc})") from None
     for r in result.runs:
         p, m = r.point, r.metrics
         group = f"{p.controller}/loss_{p.loss * 100:.0f}"

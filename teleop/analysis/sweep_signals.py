@@ -48,19 +48,17 @@ def fill_nan(x: Array, before: float | None = None) -> Array:
 
 
 def measured_force_n(pressure: Array, cfg: TeleopConfig) -> Array:
-    """The force the transparency layer would display for these hand pressures (n, 27)."""
-    tr = cfg.controller.transparency
+    """The force the transparency layer would display for these hand pressures (n, 27): its
+    own per-finger maximum and combine rule, clipped to the trigger's limit (no filter)."""
+    from teleop.control.interface import control_params
+    from teleop.control.transparency_layer import combined_force_n
+
+    params = control_params(cfg.controller)
     p = np.asarray(pressure, float).reshape(len(pressure), 3, -1)
     per_finger = np.nanmax(np.nan_to_num(p, nan=0.0), axis=2)
-    enabled = np.array([bool(e) for e in (tuple(tr.finger_enable) + (False,) * 3)[:3]])
-    per_finger = np.where(enabled[None, :], per_finger, 0.0)
-    if tr.force_combine == "sum":
-        comb = per_finger.sum(axis=1)
-    elif tr.force_combine == "mean":
-        comb = per_finger.sum(axis=1) / max(1, int(enabled.sum()))
-    else:
-        comb = per_finger.max(axis=1)
-    return np.minimum(tr.force_per_pressure_n * comb, cfg.master.force_max_n)
+    out = np.array([combined_force_n((float(a), float(b), float(c)), params)
+                    for a, b, c in per_finger])
+    return np.minimum(out, cfg.master.force_max_n)
 
 
 def path_delays_s(cfg: TeleopConfig) -> tuple[float, float]:

@@ -16,7 +16,13 @@ from __future__ import annotations
 
 import argparse
 
-from teleop.commands.common import add_config_options, config_from_args, nonneg_float
+from teleop.commands.common import (
+    add_config_options,
+    check_output_path,
+    config_from_args,
+    nonneg_float,
+)
+from teleop.errors import UserInputError
 
 ROLES = ("master", "controller", "hand")
 
@@ -57,11 +63,22 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(run=run)
 
 
+def check_service_dashboard(text: str) -> None:
+    """One line (exit 2) for a ``--dashboard`` a service cannot use, before anything starts."""
+    mode, sep, arg = text.partition(":")
+    if mode == "save" and sep and arg:
+        check_output_path(arg, "the dashboard recording")
+    elif not ((mode in ("off", "spawn", "web") and not sep) or mode == "connect"):
+        raise UserInputError(f"--dashboard {text!r}: expected spawn, web, save:PATH, "
+                             "connect:URL or off")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the service until stopped."""
     from services.process import ServiceOptions, run_service
 
     cfg = config_from_args(args)
+    check_service_dashboard(args.dashboard or "off")
     opts = ServiceOptions(role=args.role, duration_s=args.duration,
                           dashboard=args.dashboard or "off", record_dir=args.record,
                           recording_id=args.recording_id, epoch_s=args.epoch,

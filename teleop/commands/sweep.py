@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 from teleop.commands.common import (
     add_config_options,
     add_json_option,
+    check_output_path,
     config_from_args,
     nonneg_float,
     positive_float,
@@ -198,6 +199,9 @@ def run(args: argparse.Namespace) -> int:
     refine = sc.refine_steps if args.refine is None else args.refine
     if workers < 1 or refine < 0:
         raise UserInputError("--workers must be >= 1 and --refine >= 0")
+    check_output_path(args.json_path, "JSON")  # fail before the runs, not after them
+    check_output_path(args.plot, "plot")
+    check_output_path(args.rerun, "rerun log")
     if args.mode == "live":
         workers = 1  # real-time runs share the machine; one at a time keeps timing honest
     predicted, notes = predicted_limits(cfg)

@@ -24,6 +24,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from teleop.devices.base import HandReading
+from teleop.errors import UserInputError
 
 APPLICATION_ID = "teleop"
 TIMELINE = "time"
@@ -91,8 +92,12 @@ def open_stream(recording_id: str, mode: str, path: str | Path | None = None,
     if mode == "save":
         if path is None:
             raise ValueError("save mode needs a path")
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        rec.save(str(path), default_blueprint=bp)
+        try:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+            rec.save(str(path), default_blueprint=bp)
+        except (RuntimeError, OSError) as exc:
+            raise UserInputError(f"{path}: cannot write the dashboard recording ({exc})") \
+                from None
     elif mode == "connect":
         rec.connect_grpc(url, default_blueprint=bp)
     elif mode == "spawn":

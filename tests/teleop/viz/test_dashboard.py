@@ -62,6 +62,20 @@ def test_finger_drawing_keeps_link_lengths_and_curls_towards_the_palm() -> None:
     assert x0 == pytest.approx(0.14)
 
 
-def test_blueprint_builds() -> None:
-    bp = dash.blueprint()
-    assert bp is not None
+def test_blueprint_views_show_logged_paths() -> None:
+    """Every view's origin and every ``+ path`` in its contents reaches a path the dashboard
+    logs (a renamed signal would leave a view empty)."""
+    logged = [*dash.DASHBOARD_PATHS, "events", "rejects/hand/malformed"]
+    views = dash.blueprint().root_container.contents
+    assert len(views) == 8
+    for view in views:
+        origin = str(view.origin).strip("/")
+        assert origin == "" or any(p == origin or p.startswith(origin + "/") for p in logged), \
+            f"{view.name}: nothing logged under {origin!r}"
+        exprs = [view.contents] if isinstance(view.contents, str) else view.contents or []
+        for expr in exprs:
+            pat = expr.removeprefix("+ ").replace("$origin", origin).strip("/")
+            prefix = pat.removesuffix("/**")
+            hits = [p for p in logged if p == prefix or (pat.endswith("/**")
+                                                        and p.startswith(prefix + "/"))]
+            assert hits, f"{view.name}: {expr!r} matches no logged path"

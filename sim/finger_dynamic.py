@@ -1,0 +1,258 @@
+"""The finger model against a dynamic recording (``teleop sim force-step|force-blocks|position``).
+
+The finger (:func:`sim.finger.finger_step`) is simulated from rest, driven by the recording's own
+command: ``motor_cmd_units`` while the experiment's protocol is in force mode, ``setpoint_rad``
+(joint angle; the motor goal is ``JOINT_RATIO`` times it) while it is in position mode.  The
+simulated ``motor_angle_rad`` (or ``proximal_angle_rad``) is compared with the measured one.
+
+Speed: the physics runs at ``dt_s`` (default 2 ms, twice the recording's 1 ms; the difference
+it makes is measured once and counted as a model-error floor) and the fit compares every
+``every``-th sample.  Refined nominal parameters (within +-tolerance): the motor gain
+(``units_per_n``), the motor's Coulomb friction (``motor_coulomb_units``) and the base spring
+(``k_base_nm_per_rad``).  Candidates are screened on a grid of values with the nominal parameters
+held, and only the best ``refine_top`` are fitted jointly with them.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import optimize
+
+from sim.finger import ContactObject, MotorCommand, finger_outputs, finger_step, initial_finger_state
+from sim.params import JOINT_RATIO, FingerParams
+from teleop.effects import EffectSet
+from teleop.errors import RecordingError
+from teleop.recording import Recording
+
+Array = NDArray[np.float64]
+
+PARAMS = ("units_per_n", "motor_coulomb_units", "k_base_nm_per_rad")
+DYNAMIC_EXPERIMENTS = ("force-step", "force-blocks", "position")
+CANDIDATES: dict[str, tuple[tuple[float, ...], tuple[float, float]]] = {
+    # name: (screening grid, bounds); forces in N of tendon force, angles in rad of motor shaft
+    "coulomb_friction": ((0.3, 1.0, 2.0, 4.0), (0.0, 20.0)),
+    "asymmetric_friction": ((0.3, 1.0, 2.0, 4.0), (0.0, 20.0)),
+    "stiction": ((0.5, 2.0, 5.0), (0.0, 20.0)),
+    "dead_time": ((0.01, 0.03, 0.06, 0.1, 0.2), (0.0, 0.5)),
+    "actuator_lag": ((0.01, 0.03, 0.06, 0.1, 0.2), (0.0, 0.5)),
+    "actuator_gain": ((0.6, 0.8, 1.2, 1.5), (0.2, 3.0)),
+    "actuator_saturation": ((2.0, 4.0, 8.0, 11.0, 16.0), (0.2, 30.0)),
+    "sensor_offset": ((-0.1, -0.03, 0.03, 0.1), (-0.5, 0.5)),
+    "backlash": ((0.01, 0.03, 0.1), (0.0, 0.5)),
+}
+
+
+@dataclass(frozen=True, slots=True)
+class DynamicData:
+    """A dynamic recording as the fit sees it: one command per recorded row."""
+
+    t_s: Array
+    commands: tuple[MotorCommand, ...]
+    y: Array
+    output: str
+    keep: Array            # indices of the samples the fit compares
+    physics_dt_s: float    # the step the recording was made with (or a fine one)
+
+
+def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> DynamicData:
+    """Commands and measurement of a ``teleop sim`` dynamic recording (protocol from its
+    ``# experiment:`` line)."""
+    from sim.experiments import ExperimentSpec, _schedule
+
+    exp = rec.meta_value("experiment")
+    if exp not in DYNAMIC_EXPERIMENTS:
+        raise RecordingError(f"{rec.source}: --model finger needs a static weight table or a "
+                             f"'# experiment:' of {', '.join(DYNAMIC_EXPERIMENTS)} (got {exp!r})")
+    schedule = _schedule(ExperimentSpec(exp))
+    t = rec.t_s
+    units = rec.column("motor_cmd_units")
+    sp = rec.column("setpoint_rad")
+    cmds = []
+    for ti, ui, si in zip(t.tolist(), units.tolist(), sp.tolist(), strict=True):
+        mode = schedule(ti)[0].mode
+        cmds.append(MotorCommand("force", force_units=ui) if mode == "force"
+                    else MotorCommand("position", goal_rad=JOINT_RATIO * si))
+    dt_rec = float(np.median(np.diff(t)))
+    every = max(1, int(round(1.0 / (fit_rate_hz * dt_rec))))
+    try:
+        phys = float(rec.meta_value("physics_dt_s") or 0.1 * dt_rec)
+    except ValueError:
+        phys = 0.1 * dt_rec
+    return DynamicData(t, tuple(cmds), rec.column(output), output,
+                       np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
+
+
+def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float) -> Array:
+    """Simulated output at every recorded sample, from rest at the first one."""
+    obj = ContactObject(kind="none")
+    state = initial_finger_state(p)
+    t = data.t_s
+    out = np.empty(len(t))
+    motor = data.output == "motor_angle_rad"
+    for i, cmd in enumerate(data.commands):
+        o = finger_outputs(state, p, obj, eff)
+        out[i] = o.motor_angle_rad if motor else o.proximal_rad
+        if i + 1 < len(t):
+            span = t[i + 1] - t[i]
+            n = max(1, int(round(span / dt_s)))
+            for _ in range(n):
+                state = finger_step(state, cmd, p, obj, eff, span / n)
+    return out
+
+
+@dataclass(frozen=True, slots=True)
+class Fit:
+    """One fitted model: nominal parameters, effects, residual sum of squares on the fit grid."""
+
+    theta: tuple[float, ...]
+    effects: tuple[tuple[str, float], ...]
+    rss: float
+    y: Array
+
+
+@dataclass(frozen=True, slots=True)
+class FingerDynamicModel:
+    """The finger refined against a dynamic recording."""
+
+    base: FingerParams
+    data: DynamicData
+    tolerance: float = 0.2
+    dt_s: float = 2e-3
+
+    def params(self, theta: Array | tuple[float, ...]) -> FingerParams:
+        """Finger parameters with the refined ones set."""
+        return replace(self.base, **{n: float(v) for n, v in zip(PARAMS, theta, strict=True)})
+
+    def run(self, theta: Array | tuple[float, ...], effects: tuple[tuple[str, float], ...]
+            ) -> Array:
+        """Simulated output on the fit grid (NaN if the simulation fails)."""
+        eff = EffectSet()
+        try:
+            for n, v in effects:
+                eff = eff.with_effect(n, v)
+            y = simulate_dynamic(self.params(theta), eff, self.data, self.dt_s)[self.data.keep]
+        except (OverflowError, ZeroDivisionError, ValueError, FloatingPointError):
+            return np.full(len(self.data.keep), math.nan)
+        return y
+
+    def rss(self, y: Array) -> float:
+        """Residual sum of squares on the fit grid (a failed simulation: infinite)."""
+        r = y - self.data.y[self.data.keep]
+        return float(r @ r) if np.all(np.isfinite(r)) else math.inf
+
+    def fit(self, theta0: tuple[float, ...], effects: tuple[tuple[str, float], ...],
+            max_nfev: int = 12) -> Fit:
+        """Joint least-squares fit of the refined parameters and the effects' values."""
+        x0 = np.array(list(theta0) + [v for _, v in effects], float)
+        nom = np.array([getattr(self.base, n) for n in PARAMS])
+        lo = np.concatenate([nom * (1 - self.tolerance), [CANDIDATES[n][1][0] for n, _ in effects]])
+        hi = np.concatenate([nom * (1 + self.tolerance), [CANDIDATES[n][1][1] for n, _ in effects]])
+        if self.tolerance <= 0:
+            lo[: len(PARAMS)], hi[: len(PARAMS)] = nom - 1e-9 * nom, nom + 1e-9 * nom
+        x0 = np.clip(x0, lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
+        k = len(PARAMS)
+        names = [n for n, _ in effects]
+        ym = self.data.y[self.data.keep]
+        big = 10.0 * float(np.ptp(ym) or 1.0)
+
+        def resid(x: Array) -> Array:
+            r = self.run(x[:k], tuple(zip(names, x[k:].tolist(), strict=True))) - ym
+            return np.where(np.isfinite(r), r, big)
+
+        scale = np.concatenate([np.abs(nom) * 0.1 + 1e-9,
+                                [0.1 * (CANDIDATES[n][1][1] - CANDIDATES[n][1][0])
+                                 for n in names]])
+        # a delay acts in whole physics steps: difference it over two of them
+        steps = np.array([1e-3] * k + [2.0 * self.dt_s if n == "dead_time" else 1e-3
+                                       for n in names])
+        res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=scale,
+                                     max_nfev=max_nfev, diff_step=steps)
+        eff = tuple(zip(names, res.x[k:].tolist(), strict=True))
+        y = self.run(res.x[:k], eff)
+        return Fit(tuple(res.x[:k].tolist()), eff, self.rss(y), y)
+
+
+@dataclass(frozen=True, slots=True)
+class DynamicDiagnosis:
+    """What the dynamic finger diagnosis found."""
+
+    nominal: Fit
+    final: Fit
+    chosen: tuple[tuple[str, float, float], ...]   # (effect, value, relative rss reduction)
+    ranking: tuple[tuple[str, float], ...]         # (effect, relative rss reduction), best first
+    floor_rad: float                               # noise + physics-step error (rms)
+    y_meas: Array
+
+
+def _say(progress: Callable[[str], None] | None, msg: str) -> None:
+    if progress is not None:
+        progress(msg)
+
+
+def diagnose_dynamic(model: FingerDynamicModel, refine_top: int = 2, max_effects: int = 2,
+                     min_gain: float = 0.3, floor_factor: float = 2.0,
+                     progress: Callable[[str], None] | None = None) -> DynamicDiagnosis:
+    """Nominal fit, then greedy forward selection of catalog effects (screen, then refine).
+
+    An effect is kept if it lowers the residual sum of squares by ``min_gain`` (relative) while
+    the current residual is above ``floor_factor`` times the floor (measurement noise and the
+    coarse physics step's own error, measured on the calibrated finger).
+    """
+    from teleop.analysis.residual import noise_std
+
+    data = model.data
+    ym = data.y[data.keep]
+    nom0 = tuple(float(getattr(model.base, n)) for n in PARAMS)
+    fine = replace(model, dt_s=data.physics_dt_s)
+    y_fine, y_coarse = fine.run(nom0, ()), model.run(nom0, ())
+    step_err = float(np.sqrt(np.mean((y_fine - y_coarse) ** 2)))
+    floor = math.hypot(noise_std(data.y), step_err)
+    _say(progress, f"physics step {model.dt_s * 1e3:.1f} ms: error {step_err:.2g} rad; floor "
+                   f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples)")
+    current = model.fit(nom0, ())
+    nominal = current
+    chosen: list[tuple[str, float, float]] = []
+    ranking: list[tuple[str, float]] = []
+    n = len(ym)
+    while len(chosen) < max_effects:
+        if math.sqrt(current.rss / n) < floor_factor * floor:
+            break  # what is left is noise and the physics step
+        have = tuple(e for e, _ in current.effects)
+        screened = []
+        for name, (grid, _) in CANDIDATES.items():
+            if name in have:
+                continue
+            best = min(((model.rss(model.run(current.theta, current.effects + ((name, z),))), z)
+                        for z in grid), key=lambda x: x[0])
+            screened.append((best[0], name, best[1]))
+        screened.sort()
+        _say(progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
+                                                  for r, nm, _ in screened[:4]))
+        fits = []
+        for _, name, z in screened[:refine_top]:
+            _say(progress, f"fitting {name}")
+            f = model.fit(current.theta, current.effects + ((name, z),))
+            fits.append((f.rss, name, f))
+        fits.sort(key=lambda x: x[0])
+        gains = [(nm, 1.0 - r / current.rss) for r, nm, _ in fits] + [
+            (nm, 1.0 - r / current.rss) for r, nm, _ in screened[refine_top:]]
+        if not chosen:
+            ranking = gains
+        rss, name, f = fits[0]
+        gain = 1.0 - rss / current.rss
+        if gain < min_gain:
+            break
+        chosen.append((name, f.effects[-1][1], gain))
+        current = f
+    return DynamicDiagnosis(nominal, current, tuple(chosen), tuple(ranking), floor, ym)
+
+
+def print_progress(msg: str) -> None:
+    """Progress line on stderr."""
+    print(f"diagnose: {msg}", file=sys.stderr, flush=True)
