@@ -17,8 +17,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim.finger import weight_equilibrium
+from sim.finger_dynamic import (
+    DYNAMIC_EXPERIMENTS,
+    FingerDynamicModel,
+    Fit,
+    diagnose_dynamic,
+    dynamic_data,
+    print_progress,
+)
+from sim.finger_dynamic import PARAMS as PARAMS_DYN
 from sim.params import FingerParams, default_finger_params
+from teleop.analysis.candidates import explanation
 from teleop.effects import EffectSet
+from teleop.errors import RecordingError
 from teleop.recording import Recording
 
 Array = NDArray[np.float64]
@@ -66,26 +77,74 @@ DYNAMIC_COLUMNS = ("motor_cmd_units", "setpoint_rad", "motor_angle_rad")
 
 
 def _require_static(path: object, rec: Recording) -> None:
-    """Refuse, at once and in one line, a dynamic recording (the model is the static one)."""
-    from teleop.errors import RecordingError
-
+    """Refuse, at once and in one line, a recording neither static nor a supported dynamic one."""
     exp = rec.meta_value("experiment")
     if exp is not None or any(c in rec.columns for c in DYNAMIC_COLUMNS):
-        what = f"a dynamic '{exp}' recording" if exp else "a dynamic recording"
+        what = f"a '{exp}' recording" if exp else "a dynamic recording without '# experiment:'"
         raise RecordingError(
-            f"{path}: --model finger supports static weight recordings (one equilibrium per "
-            f"row: tendon_force_n -> proximal_angle_rad), not {what}; use --model axis "
+            f"{path}: --model finger supports static weight tables (one equilibrium per row: "
+            f"tendon_force_n -> proximal_angle_rad) and one 'teleop sim "
+            f"{'|'.join(DYNAMIC_EXPERIMENTS)}' recording, not {what}; use --model axis "
             "--input motor_cmd_units --output motor_angle_rad")
+
+
+def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
+    """``teleop diagnose REC --model finger`` on a dynamic finger recording."""
+    from teleop.commands.common import info, write_json
+
+    out = args.output_col or "motor_angle_rad"
+    if out not in ("motor_angle_rad", "proximal_angle_rad"):
+        raise RecordingError(f"{rec.source}: --model finger --output must be motor_angle_rad "
+                             f"or proximal_angle_rad (got {out!r})")
+    data = dynamic_data(rec, out)
+    model = FingerDynamicModel(default_finger_params(), data, args.tolerance)
+    quiet = getattr(args, "json_path", None) is not None and str(args.json_path) == "-"
+    d = diagnose_dynamic(model, progress=None if quiet else print_progress)
+    ym = d.y_meas
+
+    def nr(f: Fit) -> float:
+        return float(np.linalg.norm(f.y - ym) / np.linalg.norm(ym - np.mean(ym)))
+
+    lines = [f"teleop diagnose {rec.source} --model finger (dynamic "
+             f"'{rec.meta_value('experiment')}' recording, output-error on {out}, physics step "
+             f"{model.dt_s * 1e3:.1f} ms, {len(ym)} samples)",
+             "nominal fit (refined within +-tolerance): "
+             + ", ".join(f"{k}={v:.4g}" for k, v in zip(PARAMS_DYN, d.nominal.theta,
+                                                        strict=True))]
+    if d.chosen:
+        for i, (name, val, gain) in enumerate(d.chosen, 1):
+            lines.append(f"  {i}. {name}={val:.4g} (residual sum of squares -{gain:.0%}): "
+                         f"{explanation(name, val)}")
+    else:
+        lines.append("missing physics: none the data support above the floor "
+                     f"({d.floor_rad:.2g} rad: noise and the physics step)")
+    lines.append("candidates (relative RSS reduction, first step): "
+                 + ", ".join(f"{n} {g:+.3f}" for n, g in d.ranking))
+    lines.append(f"fit NRMSE: before {nr(d.nominal):.4g}, after {nr(d.final):.4g}")
+    info(args, "\n".join(lines))
+    write_json(args.json_path, {
+        "model": "finger", "analysis": "output-error",
+        "effects": [{"name": n, "params": {n: v}, "rss_reduction": g,
+                     "explanation": explanation(n, v)} for n, v, g in d.chosen],
+        "windows": [],
+        "fit": {"before": {"nrmse": nr(d.nominal),
+                           "params": dict(zip(PARAMS_DYN, d.nominal.theta, strict=True))},
+                "after": {"nrmse": nr(d.final),
+                          "params": {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)),
+                                     **dict(d.final.effects)}}},
+        "ranking": [{"name": n, "rss_reduction": g} for n, g in d.ranking]})
+    return 0
 
 
 def diagnose_finger(args: argparse.Namespace) -> int:
     """``teleop diagnose REC --model finger``: static weight recordings against the finger."""
     from teleop.analysis.generic import diagnose_model
     from teleop.commands.common import info, write_json
-    from teleop.errors import RecordingError
     from teleop.recording import read_recording
 
     recs = [read_recording(p, allow_nan=False) for p in args.recordings]
+    if len(recs) == 1 and recs[0].meta_value("experiment") in DYNAMIC_EXPERIMENTS:
+        return diagnose_finger_dynamic(args, recs[0])
     for p, r in zip(args.recordings, recs, strict=True):
         _require_static(p, r)
     u_col = args.input_col or "tendon_force_n"

@@ -24,7 +24,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
 
-from sim.finger import ContactObject, MotorCommand, finger_outputs, finger_step, initial_finger_state
+from sim.finger import (
+    ContactObject,
+    MotorCommand,
+    finger_outputs,
+    finger_step,
+    initial_finger_state,
+)
 from sim.params import JOINT_RATIO, FingerParams
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError

@@ -20,7 +20,6 @@ from teleop.analysis.axis_model import Array, AxisParams, simulate_axis
 from teleop.analysis.model import AxisNominal
 from teleop.effects import EffectSet
 
-
 NUMERIC_FAILURES = (OverflowError, ZeroDivisionError, ValueError, FloatingPointError,
                     np.linalg.LinAlgError)
 """Exceptions a candidate's simulation or fit may raise on absurd parameters."""

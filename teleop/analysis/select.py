@@ -10,8 +10,14 @@ import numpy as np
 
 from teleop.analysis import candidates as cand
 from teleop.analysis.equation_error import EE_EFFECTS, EEFit, EESignals, ee_effect_fit, ee_fit
-from teleop.analysis.fit import (NUMERIC_FAILURES, FitData, ModelFit, fit_model, scan_effect,
-                                 simulate)
+from teleop.analysis.fit import (
+    NUMERIC_FAILURES,
+    FitData,
+    ModelFit,
+    fit_model,
+    scan_effect,
+    simulate,
+)
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.results import DiagnoseOptions, EffectResult
 

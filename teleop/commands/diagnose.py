@@ -80,9 +80,10 @@ def _skip(rec: Recording, skip_s: float) -> Recording:
 def run(args: argparse.Namespace) -> int:
     """Run the diagnosis and print/write the results."""
     from teleop.analysis.diagnose import DiagnoseOptions, diagnose
+    from teleop.analysis.fit import NUMERIC_FAILURES
     from teleop.analysis.model import parse_nominal
     from teleop.analysis.report import to_json, to_text
-    from teleop.errors import UserInputError
+    from teleop.errors import RecordingError, UserInputError
     from teleop.recording import read_recording
 
     if args.model == "finger":
@@ -103,7 +104,12 @@ def run(args: argparse.Namespace) -> int:
     opts = DiagnoseOptions(nominal, args.input_col, output, analysis=args.analysis)
     val = (_skip(read_recording(args.validate, allow_nan=True), args.skip) if args.validate
            else None)
-    d = diagnose(recs, opts, val)
+    try:
+        d = diagnose(recs, opts, val)
+    except NUMERIC_FAILURES as e:  # candidates that fail are disqualified; this is the nominal
+        raise RecordingError(f"{args.recordings[0]}: the nominal {args.model} model cannot be "
+                             f"fitted to this recording ({type(e).__name__}: {e}); check "
+                             "--input/--output/--nominal") from None
     src = " ".join(str(p) for p in args.recordings)
     info(args, to_text(d, src))
     write_json(args.json_path, to_json(d, args.model))
