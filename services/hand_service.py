@@ -67,6 +67,7 @@ class HandService:
         self.dt_s = 1.0 / self.rate_hz
         self.seq = 0
         self.command: HandCommand | None = None
+        self.command_rx_t_s: float | None = None  # when the held command arrived
         self.hold_rad: tuple[float, float, float] | None = None
         self.delay_s = math.nan
         self.dropped = 0
@@ -125,6 +126,10 @@ class HandService:
         return HandCommand(header=header, finger_setpoint_rad=sp,  # type: ignore[arg-type]
                            preshape_rad=pre, mode=HandMode.POSITION)
 
+    def _held_s(self, t_s: float) -> float:
+        """How long the held command has been held (0 before the first)."""
+        return 0.0 if self.command_rx_t_s is None else max(t_s - self.command_rx_t_s, 0.0)
+
     def tick(self, t_s: float) -> HandSample:
         """One period at ``t_s``."""
         self.events.clear()
@@ -171,7 +176,7 @@ class HandService:
             header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
             fingers=reading.fingers, preshape_rad=reading.preshape_rad,
             echo_t_s=self.command.header.t_s if self.command is not None else -1.0,
-            echo_held_s=max(t_s - getattr(self, "command_rx_t_s", t_s), 0.0))
+            echo_held_s=self._held_s(t_s))
         self.bus.publish("hand_state", state_msg)
         if out.limited:
             if not self._was_limited:

@@ -43,6 +43,7 @@ class MasterService:
         self.dt_s = 1.0 / self.rate_hz
         self.seq = 0
         self.command: ForceCommand | None = None
+        self.command_rx_t_s: float | None = None  # when the held command arrived
         self.delay_s = math.nan
         self.dropped = 0
         self.limit_count = 0
@@ -89,7 +90,7 @@ class MasterService:
         if got:  # echo for the controller's round-trip measurement
             self.command_rx_t_s = t_s
         echo = self.command.header.t_s if self.command is not None else -1.0
-        held = max(t_s - getattr(self, "command_rx_t_s", t_s), 0.0)
+        held = 0.0 if self.command_rx_t_s is None else max(t_s - self.command_rx_t_s, 0.0)
         self.bus.publish("master_state", master_message(out, self.seq, t_s, echo, held))
         if out.limited:
             if not self._was_limited:

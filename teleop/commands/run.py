@@ -30,8 +30,9 @@ ROLES = ("master", "controller", "hand")
 def add_dashboard_option(p: argparse.ArgumentParser, default: str | None) -> None:
     """``--dashboard spawn|web|save:PATH|off`` (plus ``connect:URL`` for a running viewer)."""
     p.add_argument("--dashboard", default=default, metavar="MODE",
-                   help="spawn | web | save:PATH | connect:URL | off (default: spawn a viewer "
-                   "when there is a display, else save to dashboard.path)")
+                   help="spawn | web | save:PATH | connect:URL | off (teleop up: default spawn a "
+                   "viewer when there is a display, else save to dashboard.path; teleop run: "
+                   "default off)")
 
 
 def add_realtime_option(p: argparse.ArgumentParser) -> None:
