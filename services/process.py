@@ -14,6 +14,7 @@ from __future__ import annotations
 import gc
 import importlib
 import json
+import math
 import signal
 import sys
 import threading
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from services.runtime import LoopStats, RateLoop, try_realtime_priority
+from services.samples import status_line
 from services.telemetry import Telemetry
 from teleop.config import TeleopConfig
 
@@ -177,9 +179,17 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         tel = telemetry
         is_hand = role == "hand"
 
+        last: list[Any] = [None]  # the latest sample, for the status line
+
+        delays = [math.nan, math.nan]  # latest achieved master / hand delay (controller)
+
         def tick(t_s: float) -> None:
-            sample = svc.tick(t_s)
-            tel.emit(sample, svc.events, svc.last_reading if is_hand else None)
+            last[0] = svc.tick(t_s)
+            tel.emit(last[0], svc.events, svc.last_reading if is_hand else None)
+            if role == "controller":
+                for k, d in enumerate((last[0].master_delay_s, last[0].hand_delay_s)):
+                    if math.isfinite(d):
+                        delays[k] = d
 
         # garbage collection: start-up objects frozen out of the collector's way, automatic
         # collection off, a young-generation collection once a second inside the loop
@@ -190,11 +200,17 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         every = max(1, int(rate))
         count = [0]
 
+        t_start: list[float | None] = [None]
+
         def tick_gc(t_s: float) -> None:
             tick(t_s)
             count[0] += 1
             if count[0] % every == 0:
                 gc.collect(1)
+                if role == "controller":  # once a second: what the loop is doing
+                    if t_start[0] is None:
+                        t_start[0] = t_s - 1.0
+                    print(status_line(last[0], t_s - t_start[0], delays[0], delays[1]), flush=True)
 
         try:
             stats = loop.run(tick_gc, duration_s=opts.duration_s)

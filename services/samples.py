@@ -118,3 +118,19 @@ def sample_row(sample: Sample) -> list[float]:
         else:
             row.append(float(v))
     return row
+
+
+def status_line(sample: ControllerSample, elapsed_s: float, master_delay_s: float,
+                hand_delay_s: float) -> str:
+    """One human-readable line of what the loop is doing (printed once a second), with the
+    latest achieved delays of the master and hand links."""
+    sp = "/".join(f"{v:.2f}" for v in sample.setpoint_rad)
+    pr = max(sample.max_pressure)
+
+    def ms(d: float) -> str:
+        return f"{d * 1e3:.0f} ms" if math.isfinite(d) else "-"
+
+    wd = "  WATCHDOG" if sample.watchdog else ""
+    return (f"status {elapsed_s:5.1f} s  set-points {sp} rad  force {sample.commanded_force_n:+.2f}"
+            f" N  max pressure {pr:.0f}  store {sample.store_j:.2f} J  delay master "
+            f"{ms(master_delay_s)} hand {ms(hand_delay_s)}{wd}")

@@ -105,3 +105,19 @@ def test_sample_columns_match_rows() -> None:
     cols = sample_columns(s)
     assert cols[0] == "t_s" and len(cols) == len(sample_row(s))
     assert "pressure_f3_8" in cols and "proximal_angle_rad_f2" in cols
+
+
+def test_status_line_reports_setpoints_force_and_latest_delays() -> None:
+    import math
+
+    from services.samples import ControllerSample, status_line
+
+    vals: dict[str, object] = {n: 0.0 for n in ControllerSample.__dataclass_fields__}
+    vals.update(setpoint_rad=(1.0, 0.5, 0.25), preshape_rad=0.0, commanded_force_n=-2.5,
+                max_pressure=(10.0, 660.0, 3.0), store_j=0.75, master_delay_s=math.nan,
+                hand_delay_s=math.nan, watchdog=1.0)
+    line = status_line(ControllerSample(**vals), 3.0, 0.012, math.nan)  # type: ignore[arg-type]
+    assert "set-points 1.00/0.50/0.25 rad" in line and "force -2.50 N" in line
+    assert "max pressure 660" in line and "store 0.75 J" in line
+    assert "delay master 12 ms hand -" in line and line.endswith("WATCHDOG")
+    assert "\n" not in line
