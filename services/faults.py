@@ -9,7 +9,12 @@ with a fault-free baseline of the same config and seed.  Checked for every scena
   inside the joint limits (a guard around the backend counts violations);
 * the hand never moves on invalid data (flood: its set-point is bit-identical to the
   baseline's; controller kill and link cut: it holds still once the watchdog trips);
-* the energy balance holds (``energy_margin_j >= 0`` at every sample);
+* passivity, judged from the physics: the physical energy audit of the lockstep run
+  (``LockstepResult.audit_margin_j``: work on the simulated operator and on the object,
+  from :mod:`sim.operator` / :mod:`sim.audit`, never from controller code) is >= 0 at every
+  sample (energy delivered at both ports <= initial tank energy + energy taken from them);
+  the controllers' own ledgers (``energy_margin_j``) are checked too, as a second column, and
+  their gap to the audit is reported;
 * the services recover: after the fault ends the hand set-point tracks the baseline's
   (which follows the trigger) within ``TRACK_TOL_RAD`` for ``SETTLE_S`` within
   ``RECOVERY_MAX_S``;
@@ -103,17 +108,32 @@ class ScenarioResult:
     injected: int  # malformed payloads put on the links
     rejected: int
     rejects_by_reason: tuple[tuple[str, int], ...]
-    energy_violations: int
-    min_energy_margin_j: float
+    energy_violations: int  # samples at which the ledgers' energy balance failed
+    min_energy_margin_j: float  # by the ledgers
     recovery_s: float  # inf: never recovered
     joint_limit_violations: int  # invalid set-points that reached the hand backend
     applied_commands: int
     moved_on_invalid: bool
     watchdog_trips: int
     wall_s: float
+    # physical energy audit (lockstep with simulated operator and hand); "" = audited
+    no_audit: str = ("none: not a lockstep run of the simulated operator and hand")  # why
+    audit_violations: int = 0  # samples at which the audit margin went negative
+    min_audit_margin_j: float = math.nan
+    audit_energy_generated_j: float = math.nan
+    ledger_audit_gap_j: tuple[tuple[str, float], ...] = ()  # per port, at the end
+
+    @property
+    def has_audit(self) -> bool:
+        """Whether the verdict on passivity comes from the physical audit."""
+        return not self.no_audit
 
     def to_json(self) -> dict[str, Any]:
-        """A JSON-ready dict (infinite recovery and an unmeasured margin as null)."""
+        """A JSON-ready dict (infinite recovery and an unmeasured margin as null).
+
+        ``passive_audit`` is the verdict of the physical audit (null without one: live and
+        serial modes run real processes or devices; ``audit`` then says why);
+        ``energy_violations`` / ``min_energy_margin_j`` are the ledgers' check."""
         return {
             "name": self.name, "what": self.what, "mode": self.mode, "ok": self.ok,
             "failures": list(self.failures), "crashed": self.crashed,
@@ -128,7 +148,18 @@ class ScenarioResult:
             "applied_commands": self.applied_commands,
             "moved_on_invalid": self.moved_on_invalid,
             "watchdog_trips": self.watchdog_trips, "wall_s": self.wall_s,
+            "audit": "physical (sim.operator, sim.audit)" if self.has_audit else self.no_audit,
+            "passive_audit": (self.audit_violations == 0) if self.has_audit else None,
+            "audit_violations": self.audit_violations if self.has_audit else None,
+            "min_audit_margin_j": _finite_or_none(self.min_audit_margin_j),
+            "audit_energy_generated_j": _finite_or_none(self.audit_energy_generated_j),
+            "ledger_energy_violations": self.energy_violations,
+            "ledger_audit_gap_j": {k: _finite_or_none(v) for k, v in self.ledger_audit_gap_j},
         }
+
+
+def _finite_or_none(x: float) -> float | None:
+    return x if math.isfinite(x) else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -157,6 +188,9 @@ class SuiteResult:
                 "messages_rejected": sum(r.rejected for r in self.results),
                 "rejects_by_reason": dict(sorted(total.items())),
                 "energy_violations": sum(r.energy_violations for r in self.results),
+                "audited": sum(r.has_audit for r in self.results),
+                "audit_violations": sum(r.audit_violations for r in self.results
+                                        if r.has_audit),
                 "scenarios": [r.to_json() for r in self.results]}
 
 
@@ -197,6 +231,11 @@ class GuardedHand:
     def close(self) -> None:
         """Close the wrapped backend."""
         self.backend.close()
+
+    def port_audit_j(self) -> tuple[float, float]:
+        """The wrapped backend's physical energy audit (nan when it has none)."""
+        audit = getattr(self.backend, "port_audit_j", None)
+        return audit() if audit is not None else (math.nan, math.nan)
 
 
 @dataclass
@@ -307,16 +346,24 @@ def run_scenario(cfg: TeleopConfig, sc: Scenario, baseline: LockstepResult,
     if viol:
         failures.append(f"{viol} set-points outside the joint limits reached the motors")
     e_viol, margin, rec, moved, trips = 0, math.nan, math.inf, False, 0
+    audit: dict[str, Any] = {"no_audit": "no run"}
     if r is not None:
         n = r.t_s.size
         ref = baseline.hand_setpoint_rad[:n]
+        audit = audit_figures(r)
+        if audit["no_audit"]:
+            failures.append(f"no physical energy audit ({audit['no_audit']})")
+        elif audit["audit_violations"]:
+            failures.append(f"physical energy audit: delivered exceeded initial + taken at "
+                            f"{audit['audit_violations']} samples (by up to "
+                            f"{audit['audit_energy_generated_j']:.4g} J)")
         e_viol = energy_violations(r.energy_margin_j)
         margin = float(np.min(r.energy_margin_j))
         trips = r.watchdog_trips
         rec = recovery_time_s(r.t_s, r.hand_setpoint_rad, ref, sc.end_s, TRACK_TOL_RAD,
                               SETTLE_S)
         if e_viol:
-            failures.append(f"energy balance violated at {e_viol} samples")
+            failures.append(f"energy ledgers: balance violated at {e_viol} samples")
         if not rec <= RECOVERY_MAX_S:
             failures.append(f"no recovery within {RECOVERY_MAX_S} s")
         if sc.payloads:
@@ -343,7 +390,19 @@ def run_scenario(cfg: TeleopConfig, sc: Scenario, baseline: LockstepResult,
         rejects_by_reason=tuple(sorted(rejects.items())), energy_violations=e_viol,
         min_energy_margin_j=margin, recovery_s=rec, joint_limit_violations=viol,
         applied_commands=guard.applied, moved_on_invalid=moved, watchdog_trips=trips,
-        wall_s=time.perf_counter() - t0)
+        wall_s=time.perf_counter() - t0, **audit)
+
+
+def audit_figures(r: LockstepResult) -> dict[str, Any]:
+    """The physical-audit fields of a :class:`ScenarioResult` for lockstep run ``r``."""
+    if not r.has_audit:
+        return {"no_audit": "a backend reported no physical audit (not simulated)"}
+    m = r.audit_margin_j
+    gap = r.ledger_audit_gap_j
+    return {"no_audit": "", "audit_violations": energy_violations(m),
+            "min_audit_margin_j": float(np.min(m)) if m.size else math.nan,
+            "audit_energy_generated_j": r.audit_energy_generated_j,
+            "ledger_audit_gap_j": tuple(sorted(gap.items()))}
 
 
 def run_suite(cfg: TeleopConfig, *, short: bool = False, seed: int = 1,
@@ -384,4 +443,4 @@ def scenario_names() -> tuple[str, ...]:
 
 
 __all__ = ["BASE_OVERRIDES", "GuardedHand", "Scenario", "ScenarioResult", "SuiteResult",
-           "run_scenario", "run_suite", "scenario_names", "scenarios"]
+           "audit_figures", "run_scenario", "run_suite", "scenario_names", "scenarios"]

@@ -10,7 +10,9 @@
   spawned at once: the hand holds still while it is gone and resumes once the new one runs.
 
 Figures come from the services' recordings (``--record``): joint limits (hand set-points),
-the energy balance (master and hand ports against the tanks' initial energy), recovery
+the energy balance of the controllers' ledgers (master and hand ports against the tanks'
+initial energy; live mode has no physical audit - the services run as real processes - so
+its results say so, ``audit``, and carry no ``passive_audit`` verdict), recovery
 (live: from the end of the fault until the hand's command watchdog is clear again for
 0.25 s, so a restart includes the new process's start-up), and exit statuses (nothing
 crashes).  Processes are spawned (``sys.executable``), never forked.
@@ -245,6 +247,11 @@ def _run_one(name: str, config: Path | None, overrides: list[str], short: bool,
                   crashed, time.perf_counter() - t_wall)
 
 
+#: why a live scenario has no physical energy audit (reported instead of a verdict)
+LIVE_NO_AUDIT = ("none: live mode runs real processes, no simulated physics to audit; "
+                 "the energy check is the ledgers' only")
+
+
 def _judge(name: str, what: str, cfg: TeleopConfig, h: dict[str, np.ndarray],
            m: dict[str, np.ndarray], fault_start: float, fault_end: float, injected: int,
            rejects: dict[str, int], failures: list[str], crashed: str,
@@ -292,14 +299,14 @@ def _judge(name: str, what: str, cfg: TeleopConfig, h: dict[str, np.ndarray],
         if viol:
             failures.append(f"{viol} set-points outside the joint limits")
         if e_viol:
-            failures.append(f"energy balance violated at {e_viol} samples")
+            failures.append(f"energy ledgers: balance violated at {e_viol} samples")
     return ScenarioResult(
         name=name, what=what, mode="live", ok=not failures, failures=tuple(failures),
         crashed=crashed, fault_start_s=fault_start, fault_end_s=fault_end, injected=injected,
         rejected=sum(rejects.values()), rejects_by_reason=tuple(sorted(rejects.items())),
         energy_violations=e_viol, min_energy_margin_j=margin, recovery_s=rec,
         joint_limit_violations=viol, applied_commands=n_applied, moved_on_invalid=moved,
-        watchdog_trips=trips, wall_s=wall_s)
+        watchdog_trips=trips, wall_s=wall_s, no_audit=LIVE_NO_AUDIT)
 
 
 def run_live_suite(config: Path | None, overrides: list[str], *, short: bool = False,

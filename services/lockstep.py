@@ -87,6 +87,15 @@ class LockstepResult:
     master_limited_count: Array  # cumulative ticks the master's layer limited the force
     hand_limited_count: Array  # cumulative ticks the hand's layer moved the set-point
     watchdog_trips: int
+    # physical energy audit (sim.operator / sim.audit: from the simulated physics, not from
+    # controller code); cumulative; nan when a backend has no audit (real hardware, fakes)
+    audit_operator_delivered_j: Array | None = None
+    audit_operator_taken_j: Array | None = None
+    audit_environment_delivered_j: Array | None = None
+    audit_environment_taken_j: Array | None = None
+    energy_scale: float = 1.0  # hand-side joules per master-side joule (power scaling)
+    initial_master_j: float = 0.0
+    initial_hand_j: float = 0.0
 
     @property
     def energy_delivered_j(self) -> Array:
@@ -107,6 +116,54 @@ class LockstepResult:
     def energy_generated_j(self) -> float:
         """Largest excess of delivered over bound (0 when passive)."""
         return float(max(0.0, -float(np.min(self.energy_margin_j)))) if self.t_s.size else 0.0
+
+    @property
+    def has_audit(self) -> bool:
+        """Whether both backends reported the physical audit (simulated master and hand)."""
+        return (self.audit_operator_delivered_j is not None
+                and self.audit_environment_delivered_j is not None
+                and bool(np.all(np.isfinite(self.audit_operator_delivered_j)))
+                and bool(np.all(np.isfinite(self.audit_environment_delivered_j))))
+
+    @property
+    def audit_initial_j(self) -> float:
+        """Initial tank energy in hand-side joules (master tank weighted by the power scale)."""
+        return self.energy_scale * self.initial_master_j + self.initial_hand_j
+
+    @property
+    def audit_margin_j(self) -> Array:
+        """Physical passivity margin at every sample, in hand-side joules::
+
+            initial tanks + taken at both ports - delivered at both ports  (>= 0: passive)
+
+        from the simulated operator and object, weighting the operator port by the power
+        scale (1 = plain joules)."""
+        if not self.has_audit:
+            return np.full_like(self.t_s, np.nan)
+        rho = self.energy_scale
+        return (self.audit_initial_j
+                + rho * (self.audit_operator_taken_j - self.audit_operator_delivered_j)
+                + self.audit_environment_taken_j - self.audit_environment_delivered_j)
+
+    @property
+    def audit_energy_generated_j(self) -> float:
+        """Largest excess of the physical audit's delivered energy over its bound (>= 0)."""
+        m = self.audit_margin_j
+        if not m.size or not np.all(np.isfinite(m)):
+            return float("nan")
+        return float(max(0.0, -float(np.min(m))))
+
+    @property
+    def ledger_audit_gap_j(self) -> dict[str, float]:
+        """Net port energy out by the controllers' ledgers minus by the physical audit, per
+        port, at the end of the run (how far the books are from the physics)."""
+        if not self.has_audit or not self.t_s.size:
+            return {"operator": float("nan"), "environment": float("nan")}
+        led_m = self.master_port_out_j[-1] - self.master_port_in_j[-1]
+        led_h = self.hand_port_out_j[-1] - self.hand_port_in_j[-1]
+        aud_m = self.audit_operator_delivered_j[-1] - self.audit_operator_taken_j[-1]
+        aud_h = self.audit_environment_delivered_j[-1] - self.audit_environment_taken_j[-1]
+        return {"operator": float(led_m - aud_m), "environment": float(led_h - aud_h)}
 
 
 @dataclass
@@ -172,10 +229,12 @@ class _Recorder:
         self.m = np.full((n, len(_MASTER_COLS)), np.nan)
         self.c = np.full((n, 16), np.nan)
         self.h = np.full((n, 3 * 5 + 27 + 10), np.nan)
+        self.audit = np.full((n, 4), np.nan)
 
     def row(self, m: MasterSample, c: ControllerSample | None, h: HandSample | None,
-            c_fresh: bool, h_fresh: bool) -> None:
+            c_fresh: bool, h_fresh: bool, audit: tuple[float, float, float, float]) -> None:
         i = self.n
+        self.audit[i] = audit
         self.m[i] = [getattr(m, k) for k in _MASTER_COLS]
         if c is not None:
             self.c[i] = [*c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
@@ -210,10 +269,19 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     cfg = _seeded(cfg, seed)
     clock = VirtualClock(0.0)
     hub = InProcessHub.from_config(cfg, clock)
-    m_svc = MasterService(cfg, hub.bus("master"), master or build_master(cfg),
-                          watchdogs=watchdogs)
+    m_dev = master or build_master(cfg)
+    h_dev = hand or build_hand(cfg)
+    m_audit = getattr(m_dev, "port_audit_j", None)
+    h_audit = getattr(h_dev, "port_audit_j", None)
+
+    def audit() -> tuple[float, float, float, float]:
+        mo, mi = m_audit() if m_audit is not None else (np.nan, np.nan)
+        ho, hi = h_audit() if h_audit is not None else (np.nan, np.nan)
+        return (mo, mi, ho, hi)
+
+    m_svc = MasterService(cfg, hub.bus("master"), m_dev, watchdogs=watchdogs)
     c_svc = ControllerService(cfg, hub.bus("controller"), watchdogs=watchdogs)
-    h_svc = HandService(cfg, hub.bus("hand"), hand or build_hand(cfg), watchdogs=watchdogs)
+    h_svc = HandService(cfg, hub.bus("hand"), h_dev, watchdogs=watchdogs)
     ctx = LockstepContext(cfg, clock, hub, m_svc, c_svc, h_svc)
     services: list[Any] = [m_svc, c_svc, h_svc]
     periods = [1.0 / s.rate_hz for s in services]
@@ -260,7 +328,7 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                     else:
                         last_h, h_fresh = sample, True  # type: ignore[assignment]
             if m_sample is not None:
-                rows.row(m_sample, last_c, last_h, c_fresh, h_fresh)
+                rows.row(m_sample, last_c, last_h, c_fresh, h_fresh, audit())
                 if progress is not None and rows.n % report_every == 0:
                     progress(rows.n / n_master)
     finally:
@@ -305,6 +373,13 @@ def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: Master
         dropped_hand_command=fill(H[:, hp + 34]), dropped_hand_state=fill(C[:, 14]),
         master_limited_count=mc["limit_count"], hand_limited_count=fill(H[:, hp + 35]),
         watchdog_trips=m_svc.wd.trips + c_svc.wd.trips + h_svc.wd.trips,
+        audit_operator_delivered_j=rows.audit[:n, 0], audit_operator_taken_j=rows.audit[:n, 1],
+        audit_environment_delivered_j=rows.audit[:n, 2],
+        audit_environment_taken_j=rows.audit[:n, 3],
+        energy_scale=cfg.controller.tank.energy_scale,
+        initial_master_j=m_svc.ledger.initial_j if m_svc.ledger is not None else 0.0,
+        initial_hand_j=((h_svc.ledger.initial_j if h_svc.ledger is not None else 0.0)
+                        + (c_svc.ledger.initial_j if c_svc.ledger is not None else 0.0)),
     )
 
 

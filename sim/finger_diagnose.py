@@ -11,6 +11,7 @@ base spring (``nonlinear_stiffness``), a gravity moment (``gravity``) and an ang
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -19,14 +20,15 @@ from numpy.typing import NDArray
 from sim.finger import weight_equilibrium
 from sim.finger_dynamic import (
     DYNAMIC_EXPERIMENTS,
+    DynamicData,
     FingerDynamicModel,
-    Fit,
-    diagnose_dynamic,
     dynamic_data,
-    print_progress,
 )
 from sim.finger_dynamic import PARAMS as PARAMS_DYN
+from sim.finger_hand_rec import hand_finger_data, is_hand_recording
+from sim.finger_select import DynamicDiagnosis, diagnose_dynamic, print_progress
 from sim.params import FingerParams, default_finger_params
+from teleop.analysis.ambiguity import ambiguous
 from teleop.analysis.candidates import explanation
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
@@ -88,51 +90,88 @@ def _require_static(path: object, rec: Recording) -> None:
             "--input motor_cmd_units --output motor_angle_rad")
 
 
-def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
-    """``teleop diagnose REC --model finger`` on a dynamic finger recording."""
-    from teleop.commands.common import info, write_json
+def _nrmse(y: Array, ym: Array) -> float:
+    return float(np.linalg.norm(y - ym) / np.linalg.norm(ym - np.mean(ym)))
 
-    out = args.output_col or "motor_angle_rad"
-    if out not in ("motor_angle_rad", "proximal_angle_rad"):
-        raise RecordingError(f"{rec.source}: --model finger --output must be motor_angle_rad "
-                             f"or proximal_angle_rad (got {out!r})")
-    data = dynamic_data(rec, out)
-    model = FingerDynamicModel(default_finger_params(), data, args.tolerance)
-    quiet = getattr(args, "json_path", None) is not None and str(args.json_path) == "-"
-    d = diagnose_dynamic(model, progress=None if quiet else print_progress)
+
+def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: float
+                    ) -> tuple[list[str], dict[str, object]]:
     ym = d.y_meas
-
-    def nr(f: Fit) -> float:
-        return float(np.linalg.norm(f.y - ym) / np.linalg.norm(ym - np.mean(ym)))
-
-    lines = [f"teleop diagnose {rec.source} --model finger (dynamic "
-             f"'{rec.meta_value('experiment')}' recording, output-error on {out}, physics step "
-             f"{model.dt_s * 1e3:.1f} ms, {len(ym)} samples)",
-             "nominal fit (refined within +-tolerance): "
-             + ", ".join(f"{k}={v:.4g}" for k, v in zip(PARAMS_DYN, d.nominal.theta,
-                                                        strict=True))]
+    before, after = _nrmse(d.nominal.y, ym), _nrmse(d.final.y, ym)
+    lines = [f"{what} (output-error on {data.output}, physics step {dt_s * 1e3:.1f} ms, "
+             f"{len(ym)} samples compared)"]
+    if data.note:
+        lines.append(f"note: {data.note}")
+    lines.append("nominal fit (refined within +-tolerance): "
+                 + ", ".join(f"{k}={v:.4g}" for k, v in zip(PARAMS_DYN, d.nominal.theta,
+                                                            strict=True)))
     if d.chosen:
-        for i, (name, val, gain) in enumerate(d.chosen, 1):
-            lines.append(f"  {i}. {name}={val:.4g} (residual sum of squares -{gain:.0%}): "
+        lines.append("missing physics (best first):")
+        for i, ((name, val, gain), v) in enumerate(zip(d.chosen, d.verdicts, strict=True), 1):
+            lines.append(f"  {i}. {name}={val:.4g} (RSS -{gain:.0%}; {v.why}): "
                          f"{explanation(name, val)}")
     else:
         lines.append("missing physics: none the data support above the floor "
                      f"({d.floor_rad:.2g} rad: noise and the physics step)")
+    amb: list[str] = []
+    if d.chosen:
+        ne = d.verdicts[0].n_eff
+        g1 = dict(d.ranking).get(d.chosen[0][0], 0.0)
+        amb = ambiguous(d.chosen[0][0], [
+            (n, d.verdicts[0].score - ne * math.log(max(1.0 - g, 1e-12) / max(1.0 - g1, 1e-12)))
+            for n, g in d.ranking])
+        lines += [f"note: {a}" for a in amb]
+    for name, why in d.rejected:
+        lines.append(f"  not kept: {name} ({why})")
+    if d.warning:
+        lines.append(f"WARNING: {d.warning}")
     lines.append("candidates (relative RSS reduction, first step): "
                  + ", ".join(f"{n} {g:+.3f}" for n, g in d.ranking))
-    lines.append(f"fit NRMSE: before {nr(d.nominal):.4g}, after {nr(d.final):.4g}")
-    info(args, "\n".join(lines))
-    write_json(args.json_path, {
+    lines.append(f"fit NRMSE: before {before:.4g}, after {after:.4g}")
+    doc: dict[str, object] = {
         "model": "finger", "analysis": "output-error",
-        "effects": [{"name": n, "params": {n: v}, "rss_reduction": g,
-                     "explanation": explanation(n, v)} for n, v, g in d.chosen],
+        "selection": "penalised likelihood (effective sample size) + held-out gain",
+        "effects": [{"name": n, "params": {n: v}, "rss_reduction": g, "score": vd.score,
+                     "holdout_gain": vd.holdout_gain, "explanation": explanation(n, v)}
+                    for (n, v, g), vd in zip(d.chosen, d.verdicts, strict=True)],
         "windows": [],
-        "fit": {"before": {"nrmse": nr(d.nominal),
+        "fit": {"before": {"nrmse": before,
                            "params": dict(zip(PARAMS_DYN, d.nominal.theta, strict=True))},
-                "after": {"nrmse": nr(d.final),
+                "after": {"nrmse": after,
                           "params": {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)),
                                      **dict(d.final.effects)}}},
-        "ranking": [{"name": n, "rss_reduction": g} for n, g in d.ranking]})
+        "ranking": [{"name": n, "rss_reduction": g} for n, g in d.ranking],
+        "unexplained": d.warning, "note": data.note or None, "ambiguous": amb}
+    return lines, doc
+
+
+def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
+    """``teleop diagnose REC --model finger`` on a dynamic ``teleop sim`` recording or a
+    ``teleop up --record`` hand recording (``--finger N``)."""
+    from teleop.commands.common import info, write_json
+
+    finger = getattr(args, "finger", None)
+    if is_hand_recording(rec):
+        if finger is None:
+            raise RecordingError(f"{rec.source}: a hand recording holds three fingers; name one "
+                                 "with --finger 1|2|3")
+        data = hand_finger_data(rec, int(finger), args.output_col or "motor_angle_rad")
+        what = (f"teleop diagnose {rec.source} --model finger --finger {finger} (hand "
+                f"recording, set-points from 'setpoint_rad_f{finger}')")
+    else:
+        out = args.output_col or "motor_angle_rad"
+        if out not in ("motor_angle_rad", "proximal_angle_rad"):
+            raise RecordingError(f"{rec.source}: --model finger --output must be "
+                                 f"motor_angle_rad or proximal_angle_rad (got {out!r})")
+        data = dynamic_data(rec, out)
+        what = (f"teleop diagnose {rec.source} --model finger (dynamic "
+                f"'{rec.meta_value('experiment')}' recording)")
+    model = FingerDynamicModel(default_finger_params(), data, args.tolerance)
+    quiet = getattr(args, "json_path", None) is not None and str(args.json_path) == "-"
+    d = diagnose_dynamic(model, progress=None if quiet else print_progress)
+    lines, doc = _dynamic_report(d, what, data, model.dt_s)
+    info(args, "\n".join(lines))
+    write_json(args.json_path, doc)
     return 0
 
 
@@ -142,13 +181,23 @@ def diagnose_finger(args: argparse.Namespace) -> int:
     from teleop.commands.common import info, write_json
     from teleop.recording import read_recording
 
-    recs = [read_recording(p, allow_nan=False) for p in args.recordings]
-    if len(recs) == 1 and recs[0].meta_value("experiment") in DYNAMIC_EXPERIMENTS:
+    recs = [read_recording(p, allow_nan=True) for p in args.recordings]
+    if len(recs) == 1 and (recs[0].meta_value("experiment") in DYNAMIC_EXPERIMENTS
+                           or is_hand_recording(recs[0])):
         return diagnose_finger_dynamic(args, recs[0])
+    if any(is_hand_recording(r) for r in recs):
+        raise RecordingError(f"{args.recordings[0]}: --model finger takes one hand recording "
+                             "at a time")
     for p, r in zip(args.recordings, recs, strict=True):
         _require_static(p, r)
     u_col = args.input_col or "tendon_force_n"
     y_col = args.output_col or "proximal_angle_rad"
+    for p, r in zip(args.recordings, recs, strict=True):
+        for c in (u_col, y_col):
+            bad = ~np.isfinite(r.column(c))
+            if bad.any():
+                raise RecordingError(f"{p}: column {c!r} is empty or not finite at data row "
+                                     f"{int(np.argmax(bad)) + 1}")
     u = np.concatenate([r.column(u_col) for r in recs])
     y = np.concatenate([r.column(y_col) for r in recs])
     if len(y) < 3:
@@ -174,11 +223,12 @@ def diagnose_finger(args: argparse.Namespace) -> int:
     if d.effects:
         for e in d.effects:
             lines.append(f"effect: {e.name}={e.params[0][1]:.4g} (+-{e.std[0][1]:.2g}), "
-                         f"delta BIC {e.delta_bic:.1f}: {e.explanation}")
+                         f"score {e.delta_bic:.1f}: {e.explanation}")
     else:
         lines.append("missing physics: none the data support at the stated resolution "
                      f"({noise:.3f} rad)")
-    lines.append("candidates (delta BIC): " + ", ".join(f"{n} {b:.1f}" for n, b in d.ranking))
+    lines.append("candidates (score, the shared rule; no held-out part in a few static "
+                 "points): " + ", ".join(f"{n} {b:.1f}" for n, b in d.ranking))
     lines.append(f"fit NRMSE: before {d.nrmse_before:.4g}, after {d.nrmse_after:.4g}")
     if getattr(args, "plot", None) is not None:
         lines.append("plot: not produced for --model finger (static points; see the table)")

@@ -18,7 +18,8 @@ import numpy as np
 
 from sim.experiments import ExperimentSpec, run_experiment
 from sim.finger import ContactObject
-from sim.finger_dynamic import FingerDynamicModel, diagnose_dynamic, dynamic_data
+from sim.finger_dynamic import FingerDynamicModel, dynamic_data
+from sim.finger_select import diagnose_dynamic
 from sim.params import default_finger_params
 from teleop.effects import EffectSet
 

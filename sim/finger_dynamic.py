@@ -16,8 +16,6 @@ held, and only the best ``refine_top`` are fitted jointly with them.
 from __future__ import annotations
 
 import math
-import sys
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -26,6 +24,7 @@ from scipy import optimize
 
 from sim.finger import (
     ContactObject,
+    FingerState,
     MotorCommand,
     finger_outputs,
     finger_step,
@@ -64,6 +63,19 @@ class DynamicData:
     output: str
     keep: Array            # indices of the samples the fit compares
     physics_dt_s: float    # the step the recording was made with (or a fine one)
+    out_scale: float = 1.0  # simulated shaft angle -> recorded angle (joint side: 1 / 1.42)
+    active: Array | None = None  # rows simulated (False: contact, excluded); None: all
+    restart_goal_rad: Array | None = None  # shaft angle to settle at when a segment restarts
+    note: str = ""          # what was excluded, for the report
+
+    def split(self, block: int = 10, every: int = 4) -> tuple[Array, Array]:
+        """Training and held-out positions in ``keep``: every ``every``-th block of ``block``
+        compared samples is held out (interleaved, so both cover every regime)."""
+        i = np.arange(len(self.keep))
+        test = (i // block) % every == every - 1
+        if test.sum() < 3 or (~test).sum() < 3:
+            return i, i[:0]
+        return i[~test], i[test]
 
 
 def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> DynamicData:
@@ -94,16 +106,39 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
                        np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
 
 
+SETTLE_S = 0.4
+
+
+def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObject,
+             dt_s: float) -> FingerState:
+    """The free finger at rest under a position goal (a segment restarting after contact)."""
+    state = initial_finger_state(p)
+    cmd = MotorCommand("position", goal_rad=goal_rad)
+    for _ in range(int(SETTLE_S / dt_s)):
+        state = finger_step(state, cmd, p, obj, eff, dt_s)
+    return state
+
+
 def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float) -> Array:
-    """Simulated output at every recorded sample, from rest at the first one."""
+    """Simulated output at every recorded sample, from rest at the first one (NaN on rows
+    that are not simulated; a segment after them restarts settled at the measured angle)."""
     obj = ContactObject(kind="none")
     state = initial_finger_state(p)
     t = data.t_s
-    out = np.empty(len(t))
+    out = np.full(len(t), math.nan)
     motor = data.output == "motor_angle_rad"
+    active = data.active
+    was_active = True
     for i, cmd in enumerate(data.commands):
+        if active is not None and not active[i]:
+            was_active = False
+            continue
+        if not was_active and data.restart_goal_rad is not None:
+            state = _settled(p, eff, float(data.restart_goal_rad[i]), obj, dt_s)
+            was_active = True
         o = finger_outputs(state, p, obj, eff)
-        out[i] = o.motor_angle_rad if motor else o.proximal_rad
+        out[i] = (o.motor_angle_rad if motor else o.proximal_rad) * (
+            data.out_scale if motor else 1.0)
         if i + 1 < len(t):
             span = t[i + 1] - t[i]
             n = max(1, int(round(span / dt_s)))
@@ -118,8 +153,9 @@ class Fit:
 
     theta: tuple[float, ...]
     effects: tuple[tuple[str, float], ...]
-    rss: float
-    y: Array
+    rss: float          # on the training samples (the fit saw these)
+    y: Array            # on every compared sample
+    rss_test: float = math.nan  # on the held-out samples (same simulation, not fitted)
 
 
 @dataclass(frozen=True, slots=True)
@@ -148,9 +184,29 @@ class FingerDynamicModel:
         return y
 
     def rss(self, y: Array) -> float:
-        """Residual sum of squares on the fit grid (a failed simulation: infinite)."""
+        """Residual sum of squares on the training samples (a failed simulation: infinite)."""
+        return self.rss_parts(y)[0]
+
+    def rss_parts(self, y: Array) -> tuple[float, float]:
+        """Residual sums of squares on the training and held-out samples."""
         r = y - self.data.y[self.data.keep]
-        return float(r @ r) if np.all(np.isfinite(r)) else math.inf
+        tr, te = self.data.split()
+        out = []
+        for idx in (tr, te):
+            ri = r[idx]
+            out.append(float(ri @ ri) if np.all(np.isfinite(ri)) else math.inf)
+        return out[0], out[1]
+
+    def residual(self, f: Fit) -> Array:
+        """Training residual of a fit."""
+        return (f.y - self.data.y[self.data.keep])[self.data.split()[0]]
+
+    def finish(self, theta: tuple[float, ...], effects: tuple[tuple[str, float], ...],
+               y: Array | None = None) -> Fit:
+        """A Fit of given values (simulated unless ``y`` is given)."""
+        y = self.run(theta, effects) if y is None else y
+        tr, te = self.rss_parts(y)
+        return Fit(theta, effects, tr, y, te)
 
     def fit(self, theta0: tuple[float, ...], effects: tuple[tuple[str, float], ...],
             max_nfev: int = 12) -> Fit:
@@ -164,11 +220,12 @@ class FingerDynamicModel:
         x0 = np.clip(x0, lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
         k = len(PARAMS)
         names = [n for n, _ in effects]
-        ym = self.data.y[self.data.keep]
+        tr = self.data.split()[0]
+        ym = self.data.y[self.data.keep][tr]
         big = 10.0 * float(np.ptp(ym) or 1.0)
 
         def resid(x: Array) -> Array:
-            r = self.run(x[:k], tuple(zip(names, x[k:].tolist(), strict=True))) - ym
+            r = self.run(x[:k], tuple(zip(names, x[k:].tolist(), strict=True)))[tr] - ym
             return np.where(np.isfinite(r), r, big)
 
         scale = np.concatenate([np.abs(nom) * 0.1 + 1e-9,
@@ -180,85 +237,6 @@ class FingerDynamicModel:
         res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=scale,
                                      max_nfev=max_nfev, diff_step=steps)
         eff = tuple(zip(names, res.x[k:].tolist(), strict=True))
-        y = self.run(res.x[:k], eff)
-        return Fit(tuple(res.x[:k].tolist()), eff, self.rss(y), y)
+        return self.finish(tuple(res.x[:k].tolist()), eff)
 
 
-@dataclass(frozen=True, slots=True)
-class DynamicDiagnosis:
-    """What the dynamic finger diagnosis found."""
-
-    nominal: Fit
-    final: Fit
-    chosen: tuple[tuple[str, float, float], ...]   # (effect, value, relative rss reduction)
-    ranking: tuple[tuple[str, float], ...]         # (effect, relative rss reduction), best first
-    floor_rad: float                               # noise + physics-step error (rms)
-    y_meas: Array
-
-
-def _say(progress: Callable[[str], None] | None, msg: str) -> None:
-    if progress is not None:
-        progress(msg)
-
-
-def diagnose_dynamic(model: FingerDynamicModel, refine_top: int = 2, max_effects: int = 2,
-                     min_gain: float = 0.3, floor_factor: float = 2.0,
-                     progress: Callable[[str], None] | None = None) -> DynamicDiagnosis:
-    """Nominal fit, then greedy forward selection of catalog effects (screen, then refine).
-
-    An effect is kept if it lowers the residual sum of squares by ``min_gain`` (relative) while
-    the current residual is above ``floor_factor`` times the floor (measurement noise and the
-    coarse physics step's own error, measured on the calibrated finger).
-    """
-    from teleop.analysis.residual import noise_std
-
-    data = model.data
-    ym = data.y[data.keep]
-    nom0 = tuple(float(getattr(model.base, n)) for n in PARAMS)
-    fine = replace(model, dt_s=data.physics_dt_s)
-    y_fine, y_coarse = fine.run(nom0, ()), model.run(nom0, ())
-    step_err = float(np.sqrt(np.mean((y_fine - y_coarse) ** 2)))
-    floor = math.hypot(noise_std(data.y), step_err)
-    _say(progress, f"physics step {model.dt_s * 1e3:.1f} ms: error {step_err:.2g} rad; floor "
-                   f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples)")
-    current = model.fit(nom0, ())
-    nominal = current
-    chosen: list[tuple[str, float, float]] = []
-    ranking: list[tuple[str, float]] = []
-    n = len(ym)
-    while len(chosen) < max_effects:
-        if math.sqrt(current.rss / n) < floor_factor * floor:
-            break  # what is left is noise and the physics step
-        have = tuple(e for e, _ in current.effects)
-        screened = []
-        for name, (grid, _) in CANDIDATES.items():
-            if name in have:
-                continue
-            best = min(((model.rss(model.run(current.theta, current.effects + ((name, z),))), z)
-                        for z in grid), key=lambda x: x[0])
-            screened.append((best[0], name, best[1]))
-        screened.sort()
-        _say(progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
-                                                  for r, nm, _ in screened[:4]))
-        fits = []
-        for _, name, z in screened[:refine_top]:
-            _say(progress, f"fitting {name}")
-            f = model.fit(current.theta, current.effects + ((name, z),))
-            fits.append((f.rss, name, f))
-        fits.sort(key=lambda x: x[0])
-        gains = [(nm, 1.0 - r / current.rss) for r, nm, _ in fits] + [
-            (nm, 1.0 - r / current.rss) for r, nm, _ in screened[refine_top:]]
-        if not chosen:
-            ranking = gains
-        rss, name, f = fits[0]
-        gain = 1.0 - rss / current.rss
-        if gain < min_gain:
-            break
-        chosen.append((name, f.effects[-1][1], gain))
-        current = f
-    return DynamicDiagnosis(nominal, current, tuple(chosen), tuple(ranking), floor, ym)
-
-
-def print_progress(msg: str) -> None:
-    """Progress line on stderr."""
-    print(f"diagnose: {msg}", file=sys.stderr, flush=True)

@@ -52,11 +52,18 @@ class OperatorParams:
 
 @dataclass(frozen=True, slots=True)
 class OperatorState:
-    """Trigger closing ``x_m`` (0 = open) and its rate; ``t_s`` the model time."""
+    """Trigger closing ``x_m`` (0 = open) and its rate; ``t_s`` the model time.
+
+    ``delivered_j`` / ``taken_j``: the physical energy audit of the operator port, cumulative
+    work the displayed force did on the operator's finger (delivered) and the finger did
+    against it (taken), integrated at every substep from the force and the finger's motion.
+    """
 
     t_s: float = 0.0
     x_m: float = 0.0
     v_m_s: float = 0.0
+    delivered_j: float = 0.0
+    taken_j: float = 0.0
 
 
 def operator_params(cfg: MasterConfig) -> OperatorParams:
@@ -98,17 +105,25 @@ def operator_step(state: OperatorState, p: OperatorParams, force_n: float,
     n = max(1, math.ceil(dt_s / _MAX_SUBSTEP_S))
     h = dt_s / n
     t, x, v = state.t_s, state.x_m, state.v_m_s
+    out_j, in_j = state.delivered_j, state.taken_j
     for _ in range(n):
         x_ref = script_fraction(p, t + h) * p.travel_m
         a = (p.stiffness_n_per_m * (x_ref - x) - p.damping_n_s_per_m * v - f_disp) / p.mass_kg
         v += a * h
+        x_old = x
         x += v * h
         t += h
         if x < 0.0:
             x, v = 0.0, max(v, 0.0)
         elif x > p.travel_m:
             x, v = p.travel_m, min(v, 0.0)
-    return OperatorState(t_s=t, x_m=x, v_m_s=v)
+        # the device pushes the trigger with -f_disp along x: work on the finger this substep
+        w = -f_disp * (x - x_old)
+        if w > 0.0:
+            out_j += w
+        else:
+            in_j -= w
+    return OperatorState(t_s=t, x_m=x, v_m_s=v, delivered_j=out_j, taken_j=in_j)
 
 
 def operator_force_n(state: OperatorState, p: OperatorParams) -> float:
@@ -158,6 +173,10 @@ class VirtualOperator:
         """Display ``force_n`` (clamped to the trigger's limit) until the next call."""
         f = force_n if math.isfinite(force_n) else 0.0
         self.force_n = min(max(f, -self.params.force_max_n), self.params.force_max_n)
+
+    def port_audit_j(self) -> tuple[float, float]:
+        """(delivered, taken): physical work at the operator port so far (see OperatorState)."""
+        return self.state.delivered_j, self.state.taken_j
 
     def operator_force_n(self) -> float:
         """What the virtual finger pushes with now (for recordings)."""

@@ -113,15 +113,21 @@ def finger_energy_j(state: FingerState, params: FingerParams) -> float:
     return ke + pe
 
 
-def tendon_stretch_m(state: FingerState, params: FingerParams) -> float:
-    """Tendon elongation beyond its slack length (eq. 4.4 path length + spool), no backlash."""
-    p = params
+def distal_origin(state: FingerState, p: FingerParams) -> tuple[float, float, float, float]:
+    """(x, y, cos, sin) of the distal link's origin and direction in the proximal frame,
+    from the flexure segment angles."""
     x, y, a = p.proximal_rigid_m, 0.0, 0.0
     for s in state.flex_rad:
         a += s
         x += p.flex_segment_m * math.cos(a)
         y += p.flex_segment_m * math.sin(a)
-    ca, sa = math.cos(a), math.sin(a)
+    return x, y, math.cos(a), math.sin(a)
+
+
+def tendon_stretch_m(state: FingerState, params: FingerParams) -> float:
+    """Tendon elongation beyond its slack length (eq. 4.4 path length + spool), no backlash."""
+    p = params
+    x, y, ca, sa = distal_origin(state, p)
     p1x, p1y = p.pin1_xy_m
     p2x, p2y = p.pin2_xy_m
     l12 = math.hypot(x + ca * p2x - sa * p2y - p1x, y + sa * p2x + ca * p2y - p1y)

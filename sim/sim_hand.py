@@ -22,6 +22,7 @@ from __future__ import annotations
 import random
 from dataclasses import replace
 
+from sim.audit import object_work_j, pad_depths
 from sim.contact import contact_object_from_config
 from sim.experiments import MOTOR_COUNT_RAD, PROXIMAL_COUNT_RAD
 from sim.finger import MotorCommand, default_finger_params, finger_outputs
@@ -63,6 +64,9 @@ class SimHand:
         hold = MotorCommand("position", 0.0)
         self._cmd = HandMotorCommand((hold, hold, hold), 0.0)
         self.started = False
+        # physical energy audit of the environment port (sim.audit), per finger
+        self.env_delivered_j = [0.0, 0.0, 0.0]
+        self.env_taken_j = [0.0, 0.0, 0.0]
 
     # --- HandBackend ---------------------------------------------------------------------
     def start(self) -> None:
@@ -91,8 +95,20 @@ class SimHand:
         """Advance the physics to ``t_s`` and read the hand like the stock driver does."""
         st = self.state
         dt = self.dt_s
+        audit = self.obj.kind != "none"
+        fp, obj = self.params.finger, self.obj
+        depths = [pad_depths(f, fp, obj) for f in st.fingers] if audit else []
         while st.t_s + 0.5 * dt <= t_s:
             st = hand_step(st, self._cmd, self.params, self.obj, self.effects, dt)
+            if audit:
+                for i, f in enumerate(st.fingers):
+                    after = pad_depths(f, fp, obj)
+                    w = object_work_j(depths[i], after, obj, dt)
+                    depths[i] = after
+                    if w > 0.0:
+                        self.env_delivered_j[i] += w
+                    else:
+                        self.env_taken_j[i] -= w
         self.state = st
         out = self.truth()
         fingers = tuple(self._finger_message(out, i) for i in range(3))
@@ -117,6 +133,10 @@ class SimHand:
         self.started = False
 
     # --- extras for the servo emulator, diagnose and tests ------------------------------
+    def port_audit_j(self) -> tuple[float, float]:
+        """(delivered, taken): physical work on the object so far, all fingers (sim.audit)."""
+        return sum(self.env_delivered_j), sum(self.env_taken_j)
+
     def truth(self) -> HandOutputs:
         """The noiseless measurements (true physics) of the present state."""
         return hand_outputs(self.state, self.params, self.obj, self.effects)

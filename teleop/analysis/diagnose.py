@@ -37,7 +37,8 @@ from teleop.analysis.results import (
     Validation,
     nrmse,
 )
-from teleop.analysis.select import select_ee, select_oe
+from teleop.analysis.select import select_oe
+from teleop.analysis.select_ee import select_ee
 from teleop.analysis.windows import conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
 from teleop.recording import Recording

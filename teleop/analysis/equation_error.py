@@ -129,6 +129,10 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
             bd_ = bd
             cols[-1] = col
             bnds.append(bd_)
+    if "asymmetric_friction" in effects:  # direction-dependent viscous level as well
+        names.append("asymmetric_viscous")
+        cols.append(v * (v > 0))
+        bnds.append((-math.inf, math.inf))
     if "stiction" in effects:
         vs = effects["stiction"]
         names.append("stiction")

@@ -2,8 +2,9 @@
 
 Used for models the library does not know (the CLI wires them in from ``sim/``).  Suited to
 short or static recordings: the measurement noise is given (``noise_std``, e.g. an instrument's
-resolution) rather than estimated, and the information criterion is
-``BIC = RSS / noise^2 + p ln n``.
+resolution) rather than estimated.  Effects are kept under the shared rule
+(:mod:`teleop.analysis.criterion`, known-noise form); with a few static points there is no
+held-out part, so the score alone decides.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
+from teleop.analysis import criterion as crit
 from teleop.analysis.axis_model import Array
 from teleop.analysis.candidates import explanation, neutral
 from teleop.analysis.diagnose import EffectResult, nrmse
@@ -65,19 +67,20 @@ def _fit(model: NominalModel, t: Array, u: Array | None, y: Array, effects: tupl
 def diagnose_model(model: NominalModel, t: Array, u: Array | None, y: Array, noise_std: float,
                    starts: dict[str, tuple[float, ...]], effect_bounds: dict[str, tuple[float,
                                                                                          float]],
-                   min_delta_bic: float = 6.0, max_effects: int = 2) -> GenericDiagnosis:
+                   criterion: crit.Criterion = crit.DEFAULT, max_effects: int = 2
+                   ) -> GenericDiagnosis:
     """Fit the nominal model, then each candidate effect; keep what lowers the BIC enough."""
     n = len(y)
     names = model.param_names()
     lo0, hi0 = model.bounds()
     x_nom, rss_nom, _ = _fit(model, t, u, y, (), model.initial(), lo0, hi0)
 
-    def bic(rss: float, p: int) -> float:
-        return rss / noise_std ** 2 + p * math.log(n)
+    def score(rss0: float, rss1: float) -> float:
+        return crit.score(rss0, rss1, n, 1, float(n), noise_std)
 
     current_eff: tuple[str, ...] = ()
     current_x = x_nom
-    current_bic = bic(rss_nom, len(names))
+    current_rss = rss_nom
     chosen: list[EffectResult] = []
     ranking: list[tuple[str, float]] = []
     cands = [c for c in model.candidates() if c in CATALOG]
@@ -94,18 +97,18 @@ def diagnose_model(model: NominalModel, t: Array, u: Array | None, y: Array, noi
                 if best is None or rss < best[1]:
                     best = (x, rss, sd)
             assert best is not None
-            fits.append((current_bic - bic(best[1], len(best[0])), c, best))
+            fits.append((score(current_rss, best[1]), c, best))
         fits.sort(key=lambda f: -f[0])
         if not chosen:
             ranking = [(c, d) for d, c, _ in fits]
         dbic, c, (x, rss, sd) = fits[0]
-        if dbic < min_delta_bic:
+        if dbic < criterion.min_score:
             break
         val = float(x[-1])
         chosen.append(EffectResult(c, ((c, val),), ((c, float(sd[-1])),), dbic, math.nan,
                                    explanation(c, val)))
         current_eff, current_x = current_eff + (c,), x
-        current_bic = bic(rss, len(x))
+        current_rss = rss
         cands = [k for k in cands if k != c]
     k = len(names)
     eff = EffectSet()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from teleop.analysis.ambiguity import ambiguous
+from teleop.analysis.criterion import unexplained
 from teleop.analysis.diagnose import Diagnosis
 from teleop.analysis.residual import ResidualStats
 
@@ -26,6 +28,7 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
         "analysis": d.analysis,
         "analysis_reason": d.analysis_reason,
         "effects": [{"name": e.name, "params": dict(e.params), "delta_bic": e.delta_bic,
+                     "score": e.delta_bic,
                      "uncertainty": dict(e.std), "holdout_gain": e.holdout_gain,
                      "explanation": e.explanation} for e in d.effects],
         "windows": [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why,
@@ -34,11 +37,22 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
                 "after": {"nrmse": d.nrmse_after, "params": dict(d.final_params)}},
         "ranking": [{"name": n, "delta_bic": b} for n, b in d.ranking],
         "residual": {"before": _stats(d.residual_before), "after": _stats(d.residual_after)},
+        "selection": "penalised likelihood (effective sample size) + held-out gain",
+        "unexplained": _warning(d),
+        "ambiguous": ambiguous(d.effects[0].name, d.ranking) if d.effects else [],
     }
     if d.validation is not None:
         out["validation"] = {"before": {"nrmse": d.validation.nrmse_before},
                              "after": {"nrmse": d.validation.nrmse_after}}
     return out
+
+
+def _warning(d: Diagnosis) -> str | None:
+    """The unexplained-residual warning (only when effects were named: otherwise the report
+    already says that no catalog effect explains the residual)."""
+    if not d.effects:
+        return None
+    return unexplained(d.residual_after.rms, d.residual_after.noise_std)
 
 
 def to_text(d: Diagnosis, source: str = "") -> str:
@@ -57,9 +71,12 @@ def to_text(d: Diagnosis, source: str = "") -> str:
         for i, e in enumerate(d.effects, 1):
             ps = ", ".join(f"{k}={_fmt(v)}" for k, v in e.params)
             unc = dict(e.std).get(e.name, math.nan)
-            lines.append(f"  {i}. {e.name}: {ps} (+-{_fmt(unc)}), delta BIC {e.delta_bic:.1f}, "
+            lines.append(f"  {i}. {e.name}: {ps} (+-{_fmt(unc)}), score {e.delta_bic:.1f}, "
                          f"held-out gain {e.holdout_gain:.1%}")
             lines.append(f"     {e.explanation}")
+        if _warning(d):
+            lines.append(f"WARNING: {_warning(d)}")
+        lines += [f"note: {a}" for a in ambiguous(d.effects[0].name, d.ranking)]
     elif d.residual_after.rms_over_noise < 3.0:
         lines.append("missing physics: none the data support (the nominal model explains the "
                      "recording to the noise)")
@@ -68,7 +85,7 @@ def to_text(d: Diagnosis, source: str = "") -> str:
                      f"residual is {d.residual_after.rms_over_noise:.0f}x the noise (physics "
                      f"outside the catalog, or a start-up transient)")
     if d.ranking:
-        lines.append("candidates (delta BIC vs nominal): " + ", ".join(
+        lines.append("candidates (score vs nominal): " + ", ".join(
             f"{n} {b:.0f}" for n, b in d.ranking))
     if d.windows:
         lines.append(f"windows where the nominal residual exceeds the noise ({len(d.windows)}):")

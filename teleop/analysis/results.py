@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from teleop.analysis.axis_model import Array
+from teleop.analysis.criterion import DEFAULT, Criterion
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.residual import ResidualStats
 from teleop.analysis.windows import Window
@@ -21,8 +22,7 @@ class DiagnoseOptions:
     input_col: str | None
     output_col: str
     analysis: str = "auto"            # auto | output-error | equation-error
-    min_delta_bic: float = 20.0
-    min_holdout_gain: float = 0.02    # held-out relative error reduction an effect must bring
+    criterion: Criterion = DEFAULT    # the one selection rule (teleop.analysis.criterion)
     max_effects: int = 3
     fit_rate_hz: float = 250.0         # output-error fit grid (the recording is decimated)
     max_fit_samples: int = 10000      # long recordings: lower the fit rate (not below 100 Hz)
@@ -40,7 +40,7 @@ class EffectResult:
     name: str
     params: tuple[tuple[str, float], ...]
     std: tuple[tuple[str, float], ...]
-    delta_bic: float
+    delta_bic: float       # the shared rule's score (penalised likelihood gain; JSON "delta_bic")
     holdout_gain: float
     explanation: str
 

@@ -9,7 +9,13 @@ from dataclasses import replace
 import numpy as np
 
 from teleop.analysis import candidates as cand
-from teleop.analysis.equation_error import EE_EFFECTS, EEFit, EESignals, ee_effect_fit, ee_fit
+from teleop.analysis import criterion as crit
+from teleop.analysis.equation_error import (
+    EE_EFFECTS,
+    EESignals,
+    ee_effect_fit,
+    ee_fit,
+)
 from teleop.analysis.fit import (
     NUMERIC_FAILURES,
     FitData,
@@ -35,6 +41,13 @@ def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple
     if name == "stiction":
         params.append(("stribeck_velocity", fit.value("stribeck_velocity")))
     return tuple(params), tuple(stds)
+
+
+def _score(base: ModelFit, aug: ModelFit, data: FitData) -> float:
+    """The shared rule's penalised likelihood gain of ``aug`` over ``base``."""
+    r = aug.y_fit - data.y
+    n = int(np.sum(np.isfinite(r)))
+    return crit.score(base.rss, aug.rss, n, aug.n_params - base.n_params, crit.effective_n(r))
 
 
 def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: ModelFit,
@@ -129,15 +142,15 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
                                   current.effects + (name,), opts.max_nfev)
             except NUMERIC_FAILURES:
                 continue  # a candidate whose fit fails numerically is disqualified
-            fits.append((current.bic - f.bic, name, f))
+            fits.append((_score(current, f, data), name, f))
         fits.sort(key=lambda x: -x[0])
         # refine the leading candidates fully before choosing (quick fits rank roughly)
         refined = []
         for dbic, name, f in fits[: opts.refine_top]:
-            if dbic >= opts.min_delta_bic:
+            if dbic >= opts.criterion.min_score:
                 try:
                     f2 = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
-                    f, dbic = f2, current.bic - f2.bic
+                    f, dbic = f2, _score(current, f2, data)
                 except NUMERIC_FAILURES:
                     pass  # keep the quick fit
             refined.append((dbic, name, f))
@@ -146,13 +159,14 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
             ranking = [(n, d) for d, n, _ in fits]
         accepted = False
         for dbic, name, f in fits:
-            if dbic < opts.min_delta_bic:
+            if dbic < opts.criterion.min_score:
                 break
             try:
                 gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
             except NUMERIC_FAILURES:
                 continue
-            if gain < opts.min_holdout_gain:
+            if not crit.judge(current.rss, f.rss, f.y_fit - data.y, f.n_params - current.n_params,
+                              gain, criterion=opts.criterion).accepted:
                 continue
             p, s = _effect_params(name, f, data)
             chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
@@ -188,7 +202,7 @@ def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[Eff
                 reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
             except NUMERIC_FAILURES:
                 continue  # cannot test this removal: keep the effect
-            if reduced.bic - full.bic < opts.min_delta_bic:
+            if _score(reduced, full, data) < opts.criterion.min_score:
                 chosen = [c for c in chosen if c.name != e.name]
                 full = reduced
                 changed = True
@@ -232,48 +246,3 @@ def _screen(sig: EESignals, nominal: AxisNominal, names: tuple[str, ...], fixed_
     keep = {n for _, n in scored[:top]} | {n for n in names if n not in EE_EFFECTS
                                            or n == "stiction"}
     return tuple(n for n in names if n in keep)
-
-
-def select_ee(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions, names: tuple[str, ...],
-               fixed_inertia: float, scales: cand.Scales
-               ) -> tuple[EEFit, EEFit, list[EffectResult], list[tuple[str, float]]]:
-    grids = _ee_grids(scales)
-    base: dict[str, float] = {}
-    nom = ee_fit(sig, nominal, base, fixed_inertia)
-    current = nom
-    chosen: list[EffectResult] = []
-    ranking: list[tuple[str, float]] = []
-    remaining = [n for n in names if n in EE_EFFECTS]
-    while remaining and len(chosen) < opts.max_effects:
-        fits = []
-        for name in remaining:
-            try:
-                f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)),
-                                  fixed_inertia)
-            except NUMERIC_FAILURES:
-                continue  # disqualified
-            if not math.isfinite(f.bic):
-                continue
-            fits.append((current.bic - f.bic, name, f))
-        fits.sort(key=lambda x: -x[0])
-        if not chosen:
-            ranking = [(n, d) for d, n, _ in fits]
-        if not fits or fits[0][0] < opts.min_delta_bic:
-            break
-        dbic, name, f = fits[0]
-        extra = dict(f.extra)
-        if name in extra:
-            val = extra[name] if name != "stiction" else f.get("stiction")
-        else:
-            val = f.get(name)
-        if name == "sensor_offset":
-            k = f.get("stiffness") + f.get("gravity")
-            val = val / k if k else val
-        params = [(name, val)] + ([("stribeck_velocity", extra["stiction"])]
-                                  if name == "stiction" else [])
-        chosen.append(EffectResult(name, tuple(params), ((name, math.nan),), dbic, math.nan,
-                                   cand.explanation(name, val)))
-        base = {**base, name: extra.get(name, 1.0)}
-        current = f
-        remaining = [n for d, n, _ in fits if n != name and d >= opts.min_delta_bic]
-    return nom, current, chosen, ranking

@@ -30,8 +30,8 @@ from teleop.config import TeleopConfig
 from teleop.errors import UserInputError
 
 __all__ = ["SweepPoint", "SweepRun", "SweepResult", "PointRunner", "ProgressFn",
-           "point_config", "run_delay_sweep", "max_stable_delay", "format_table",
-           "result_from_json", "point_duration_s"]
+           "point_config", "run_delay_sweep", "max_stable_delay", "point_duration_s",
+           "run_points"]
 
 PointRunner = Callable[[TeleopConfig, float], RunSignals]
 ProgressFn = Callable[[int, int, "SweepRun"], None]
@@ -39,13 +39,17 @@ ProgressFn = Callable[[int, int, "SweepRun"], None]
 
 @dataclass(frozen=True, slots=True)
 class SweepPoint:
-    """One point of the grid: controller, one-way master<->controller delay, jitter, loss."""
+    """One point of the grid: controller, one-way master<->controller delay, jitter, loss
+    (both links), and optionally the operator style, the object and the jitter law."""
 
     controller: str
     delay_s: float
     jitter_s: float
     loss: float
     seed: int
+    operator: str = ""  # master.virtual.style ("" = as configured)
+    object: str = ""  # a name of teleop.analysis.sweep_objects.OBJECTS ("" = as configured)
+    jitter: str = ""  # jitter law ("" = uniform when jitter_s > 0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -57,20 +61,35 @@ class SweepRun:
     wall_s: float
     refine: bool = False  # an extra run of the bisection for the largest stable delay
     signals: RunSignals | None = field(default=None, compare=False, repr=False)
+    extra: tuple[tuple[str, Any], ...] = ()  # extra JSON keys (endurance)
 
     def row(self) -> dict[str, Any]:
         """The JSON row (DESIGN.md contract keys first, then extras)."""
         m = self.metrics
+        worst = max(m.oscillations, key=lambda o: o.index, default=None)
         return {
             "controller": self.point.controller, "delay_s": self.point.delay_s,
             "jitter_s": self.point.jitter_s, "loss": self.point.loss, "stable": m.stable,
             "passive": m.passive, "energy_generated_j": m.energy_generated_j,
             "tracking_rms_rad": m.tracking_rms_rad, "force_rms_n": m.force_rms_n,
-            "tank_min_j": m.tank_min_j, "limited_count": m.limited_count,
+            "tank_min_j": m.tank_min_j, "operator": self.point.operator,
+            "object": self.point.object, "passive_audit": m.passive_audit,
+            "audit_energy_generated_j": m.audit_energy_generated_j,
+            "felt_true_force_ratio": m.felt_true_force_ratio,
+            "passive_ledger": m.passive_ledger,
+            "ledger_audit_gap_operator_j": m.ledger_audit_gap_operator_j,
+            "ledger_audit_gap_environment_j": m.ledger_audit_gap_environment_j,
+            "jitter": self.point.jitter or ("uniform" if self.point.jitter_s > 0 else "none"),
+            "oscillation_amplitude": worst.amplitude if worst else 0.0,
+            "oscillation_frequency_hz": worst.frequency_hz if worst else math.nan,
+            "oscillation_signal": worst.name if worst else "",
+            "oscillation": {o.name: o.as_dict() for o in m.oscillations},
+            "limited_count": m.limited_count,
             "limited_fraction": m.limited_fraction, "dropped_messages": m.dropped_messages,
             "oscillation_index": m.oscillation_index, "growth_ratio": m.growth_ratio,
             "hf_power_fraction": m.hf_power_fraction, "reason": m.reason,
             "seed": self.point.seed, "refine": self.refine, "wall_s": self.wall_s,
+            **dict(self.extra),
         }
 
 
@@ -104,43 +123,27 @@ class SweepResult:
         }
 
 
-def result_from_json(doc: dict[str, Any]) -> SweepResult:
-    """Rebuild a :class:`SweepResult` from :meth:`SweepResult.to_json` output."""
-    runs = []
-    for row in doc["runs"]:
-        point = SweepPoint(row["controller"], row["delay_s"], row["jitter_s"], row["loss"],
-                           int(row.get("seed", 0)))
-        vals = {f: row[f] for f in RunMetrics.__dataclass_fields__}
-        vals = {k: (math.nan if v is None else v) for k, v in vals.items()}
-        runs.append(SweepRun(point, RunMetrics(**vals), float(row.get("wall_s", 0.0)),
-                             bool(row.get("refine", False))))
-
-    def num(v: Any) -> float:
-        return math.inf if v is None else float(v)
-
-    brackets = tuple((c, num(lo) if lo is not None else math.nan, num(hi))
-                     for c, (lo, hi) in doc.get("measured_bracket_s", {}).items())
-    return SweepResult(tuple(runs), tuple(doc["predicted_max_stable_delay_s"].items()),
-                       tuple(doc.get("measured_max_stable_delay_s", {}).items()), brackets,
-                       doc.get("mode", "lockstep"), int(doc.get("seed", 0)),
-                       float(doc.get("duration_s", 0.0)), float(doc.get("wall_s", 0.0)),
-                       tuple(doc.get("notes", ())))
-
-
 def point_config(cfg: TeleopConfig, p: SweepPoint) -> TeleopConfig:
-    """``cfg`` with the point's controller, delay, jitter, loss and seeds applied.
+    """``cfg`` with the point's controller, delay, jitter, loss, operator, object and seeds.
 
-    Delay, jitter and loss act on the master<->controller link in both directions; the
-    controller<->hand link keeps what ``cfg`` says.
+    Delay and jitter act on the master<->controller link in both directions; loss on both
+    links (master<->controller and controller<->hand), both directions.
     """
+    from teleop.analysis.sweep_objects import OBJECTS, with_object
+
     link = cfg.links.master_controller
+    law = p.jitter or (("uniform" if p.jitter_s > 0 else "none") if link.jitter == "none"
+                       else link.jitter)
     link = replace(link, delay_s=p.delay_s, backward_delay_s=None, loss=p.loss,
-                   jitter=("uniform" if p.jitter_s > 0 else "none") if link.jitter == "none"
-                   else link.jitter, jitter_s=p.jitter_s, seed=p.seed)
-    hand_link = replace(cfg.links.controller_hand, seed=p.seed + 1)
+                   jitter=law if p.jitter_s > 0 else "none", jitter_s=p.jitter_s, seed=p.seed)
+    hand_link = replace(cfg.links.controller_hand, loss=p.loss, seed=p.seed + 1)
     links = replace(cfg.links, master_controller=link, controller_hand=hand_link)
-    return replace(cfg, links=links, controller=replace(cfg.controller, kind=p.controller),
-                   session=replace(cfg.session, seed=p.seed))
+    cfg = replace(cfg, links=links, controller=replace(cfg.controller, kind=p.controller),
+                  session=replace(cfg.session, seed=p.seed))
+    if p.operator:
+        cfg = replace(cfg, master=replace(cfg.master, virtual=replace(cfg.master.virtual,
+                                                                      style=p.operator)))
+    return with_object(cfg, p.object) if p.object in OBJECTS else cfg  # else: a label
 
 
 def point_duration_s(cfg: TeleopConfig, duration_s: float) -> float:
@@ -166,7 +169,9 @@ def decimate(s: RunSignals, rate_hz: float = 200.0) -> RunSignals:
     step = max(1, int(round(1.0 / (rate_hz * float(np.median(np.diff(s.t_s)))))))
     arrays = {f: getattr(s, f)[::step] for f in ("t_s", "setpoint_rad", "finger_rad",
                                                  "force_displayed_n", "force_measured_n",
-                                                 "energy_out_j", "energy_in_j", "tank_j")}
+                                                 "energy_out_j", "energy_in_j", "tank_j",
+                                                 "fingers_rad", "trigger_m", "audit_margin_j")
+              if getattr(s, f) is not None}
     return replace(s, **arrays)
 
 
@@ -178,6 +183,18 @@ def _run_one(runner: PointRunner, cfg: TeleopConfig, point: SweepPoint, duration
     metrics = classify_run(signals, criteria)
     return SweepRun(point, metrics, time.perf_counter() - t0, refine,
                     decimate(signals) if keep else None)
+
+
+def run_points(runner: PointRunner, cfg: TeleopConfig, points: Sequence[SweepPoint],
+               duration_s: float, criteria: StabilityCriteria, workers: int,
+               done: Callable[[SweepRun], None]) -> list[SweepRun]:
+    """Run and classify ``points`` (spawn pool when ``workers > 1``), in order."""
+    pool = _Pool(workers)
+    try:
+        return pool.map(_run_one, [(runner, cfg, p, duration_s, criteria, False)
+                                   for p in points], done)
+    finally:
+        pool.close()
 
 
 def max_stable_delay(runs: Sequence[SweepRun], controller: str,
@@ -265,7 +282,10 @@ def run_delay_sweep(
         raise UserInputError("sweep: delays must be >= 0 and losses within [0, 1]")
     t0 = time.perf_counter()
     delays = sorted(set(float(d) for d in delays_s))
-    points = [SweepPoint(c, d, jitter_s, float(p), _point_seed(seed, ci, di, li))
+    from teleop.analysis.sweep_objects import object_name
+
+    style, obj = cfg.master.virtual.style, object_name(cfg)
+    points = [SweepPoint(c, d, jitter_s, float(p), _point_seed(seed, ci, di, li), style, obj)
               for ci, c in enumerate(controllers) for li, p in enumerate(losses)
               for di, d in enumerate(delays)]
     to_refine = [c for c in controllers if refine_controllers is None or c in refine_controllers]
@@ -313,7 +333,8 @@ def _refine(pool: _Pool, runner: PointRunner, cfg: TeleopConfig, runs: list[Swee
             lo, hi = brackets[c]
             mid = 0.5 * (lo + hi)
             ci = list(controllers).index(c)
-            p = SweepPoint(c, mid, jitter_s, loss0, _point_seed(seed, ci, 1000 + step, 0))
+            p = SweepPoint(c, mid, jitter_s, loss0, _point_seed(seed, ci, 1000 + step, 0),
+                           cfg.master.virtual.style, runs[0].point.object)
             jobs.append((runner, cfg, p, duration_s, criteria, True))
         for c, run in zip(active, pool.map(_run_one, jobs, done), strict=True):
             lo, hi = brackets[c]
@@ -324,37 +345,3 @@ def _refine(pool: _Pool, runner: PointRunner, cfg: TeleopConfig, runs: list[Swee
 def as_dict(run: SweepRun) -> dict[str, Any]:
     """A plain dict of a run (for logging)."""
     return {"point": asdict(run.point), "metrics": asdict(run.metrics), "wall_s": run.wall_s}
-
-
-def format_table(result: SweepResult) -> str:
-    """The results as a fixed-width text table, then the largest stable delays."""
-    head = (f"{'controller':<10} {'delay_s':>8} {'loss':>5} {'stable':>6} {'passive':>7} "
-            f"{'E_gen_J':>10} {'track_rad':>9} {'force_N':>8} {'tank_min_J':>10} "
-            f"{'limited':>8} {'osc':>6}")
-    lines = [head, "-" * len(head)]
-    for r in result.runs:
-        m, p = r.metrics, r.point
-        tank = f"{m.tank_min_j:10.3f}" if math.isfinite(m.tank_min_j) else f"{'-':>10}"
-        lines.append(
-            f"{p.controller:<10} {p.delay_s:8.4f} {p.loss:5.2f} {'yes' if m.stable else 'NO':>6} "
-            f"{'yes' if m.passive else 'NO':>7} {m.energy_generated_j:10.3g} "
-            f"{m.tracking_rms_rad:9.3f} {m.force_rms_n:8.3f} {tank} "
-            f"{m.limited_fraction:8.1%} {m.oscillation_index:6.3f}"
-            + ("  (bisection)" if r.refine else ""))
-    pred = dict(result.predicted_max_stable_delay_s)
-    brackets = {c: (lo, hi) for c, lo, hi in result.measured_bracket_s}
-    lines.append("")
-    lines.append("largest stable one-way delay (loss 0):")
-    for c in dict.fromkeys(r.point.controller for r in result.runs):
-        lo, hi = brackets.get(c, (math.nan, math.nan))
-        meas = ("unstable at every delay" if math.isnan(lo) else
-                f"> {lo:.4f} s (stable at every delay swept)" if math.isinf(hi) else
-                f"{lo:.4f} s (unstable at {hi:.4f} s)")
-        line = f"  {c:<10} measured {meas}"
-        if c in pred:
-            line += f"; predicted (linearised loop) {pred[c]:.4f} s"
-            if math.isfinite(hi) and not math.isnan(lo) and pred[c] > 0:
-                line += f"; measured/predicted {lo / pred[c]:.2f}"
-        lines.append(line)
-    lines.extend(f"note: {n}" for n in result.notes)
-    return "\n".join(lines)

@@ -85,6 +85,8 @@ def signals_from_recordings(master: Recording, controller: Recording, hand: Reco
         "dropped_master_state": _held(controller, t, "master_dropped"),
         "dropped_hand_state": _held(controller, t, "hand_dropped"),
     }
+    if master.has("trigger_position_m"):
+        cols["trigger_position_m"] = master.column("trigger_position_m")
     return signals_from_columns(cols, cfg, max(initial, 0.0))
 
 

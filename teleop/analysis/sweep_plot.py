@@ -62,7 +62,8 @@ def plot_sweep(result: SweepResult, path: Path | str) -> Path:
                        Patch(facecolor="#d62728", hatch="//", label="unstable, not passive")],
               loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)
 
-    panels = [(axes[0, 1], "energy_generated_j", "energy generated (max excess) [J]", "symlog"),
+    panels = [(axes[0, 1], "audit_energy_generated_j",
+               "energy generated, physical audit (max excess) [J]", "symlog"),
               (axes[1, 0], "tracking_rms_rad", "finger tracking RMS vs delayed command [rad]",
                "linear"),
               (axes[1, 1], "force_rms_n", "displayed vs delayed measured force RMS [N]",

@@ -13,7 +13,12 @@ Which signal is which (finger 1, the first enabled finger, stands for the hand):
   (per-finger maximum, combined as the transparency layer does, times
   ``force_per_pressure_n``), unfiltered and undelayed; the force error is taken against it
   delayed by the backward path (hand->controller->master);
-* energies: port energies of master and hand, initial tank energy, from the services' ledgers.
+* oscillation signals: the joint-side motor angle of all three fingers, the displayed force and
+  the trigger position, examined in :func:`hold_segments_s` (the holds of the operator's
+  script, a round trip after each ramp);
+* energies: port energies of master and hand, initial tank energy, from the services' ledgers;
+  and the physical audit (``LockstepResult.audit_margin_j``: simulated operator and object)
+  when the run has one, which decides ``passive``.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from teleop.config import TeleopConfig
 Array = NDArray[np.float64]
 
 __all__ = ["signals_from_lockstep", "signals_from_columns", "fill_nan", "measured_force_n",
-           "path_delays_s", "round_trip_s", "settle_time_s"]
+           "path_delays_s", "round_trip_s", "settle_time_s", "hold_segments_s"]
 
 
 def fill_nan(x: Array, before: float | None = None) -> Array:
@@ -88,6 +93,32 @@ def settle_time_s(cfg: TeleopConfig) -> float:
     return v.close_s + v.ramp_s + round_trip_s(cfg)
 
 
+def hold_segments_s(cfg: TeleopConfig, t_end_s: float) -> tuple[tuple[float, float], ...]:
+    """Where the virtual operator holds still and the loop has closed, up to ``t_end_s``.
+
+    One segment from :func:`settle_time_s` to the end for a single grasp; for a repeating
+    script every hold from one round trip after the end of the ramp to the start of the
+    release; empty for a non-virtual master.
+    """
+    v = cfg.master.virtual
+    if cfg.master.backend != "virtual":
+        return ()
+    if not v.repeat:
+        settle = settle_time_s(cfg)
+        return ((settle, t_end_s + 1e-9),) if t_end_s > settle else ()
+    period = v.close_s + v.ramp_s + v.hold_s + v.release_s
+    rt = round_trip_s(cfg)
+    out = []
+    k = 0
+    while period > 0 and k * period < t_end_s:
+        a = k * period + v.close_s + v.ramp_s + rt
+        b = min(k * period + v.close_s + v.ramp_s + v.hold_s, t_end_s + 1e-9)
+        if b > a:
+            out.append((a, b))
+        k += 1
+    return tuple(out)
+
+
 def _finger(cfg: TeleopConfig) -> int:
     en = tuple(cfg.controller.transparency.finger_enable)
     return next((i for i, e in enumerate(en[:3]) if e), 0)
@@ -101,8 +132,18 @@ def _last(x: Any) -> float:
 
 def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
                          initial_j: float) -> RunSignals:
-    """RunSignals from named columns (the LockstepResult attribute names, 2-D where (n, k))."""
+    """RunSignals from named columns (the LockstepResult attribute names, 2-D where (n, k)).
+
+    Optional: ``trigger_position_m``; ``audit_margin_j`` (with ``audit_throughput_j`` and
+    ``ledger_audit_gap_j`` as 1-element/2-element arrays) for the physical audit.
+    """
     f = _finger(cfg)
+    motors = np.column_stack([fill_nan(np.asarray(cols["motor_angle_rad"], float)[:, i])
+                              for i in range(np.asarray(cols["motor_angle_rad"]).shape[1])])
+    trigger = (fill_nan(np.asarray(cols["trigger_position_m"], float), 0.0)
+               if "trigger_position_m" in cols else None)
+    margin = np.asarray(cols["audit_margin_j"], float) if "audit_margin_j" in cols else None
+    gap = tuple(np.asarray(cols.get("ledger_audit_gap_j", [np.nan, np.nan]), float))
     t = np.asarray(cols["t_s"], float)
     tr = cfg.controller.transparency
     fwd, back = path_delays_s(cfg)
@@ -117,7 +158,7 @@ def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
     return RunSignals(
         t_s=t,
         setpoint_rad=fill_nan(np.asarray(cols["setpoint_rad"], float)[:, f], tr.open_angle_rad),
-        finger_rad=fill_nan(np.asarray(cols["motor_angle_rad"], float)[:, f]),
+        finger_rad=motors[:, f],
         force_displayed_n=fill_nan(np.asarray(cols["displayed_force_n"], float), 0.0),
         force_measured_n=measured_force_n(np.asarray(cols["pressure"], float), cfg),
         energy_out_j=fill_nan(np.asarray(cols["master_port_out_j"], float)
@@ -134,15 +175,30 @@ def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
         steps=len(t),
         dropped_messages=int(dropped),
         settle_s=settle_time_s(cfg),
+        fingers_rad=motors,
+        trigger_m=trigger,
+        segments_s=hold_segments_s(cfg, float(t[-1]) if t.size else 0.0),
+        audit_margin_j=margin,
+        audit_throughput_j=float(np.asarray(cols.get("audit_throughput_j", [0.0]))[0]),
+        ledger_audit_gap_j=(float(gap[0]), float(gap[1])),
     )
 
 
 def signals_from_lockstep(result: Any, cfg: TeleopConfig) -> RunSignals:
     """RunSignals from a ``services.lockstep.LockstepResult``."""
-    names = ("t_s", "setpoint_rad", "motor_angle_rad", "displayed_force_n", "pressure",
+    names = ("t_s", "trigger_position_m", "setpoint_rad", "motor_angle_rad",
+             "displayed_force_n", "pressure",
              "master_port_out_j", "hand_port_out_j", "master_port_in_j", "hand_port_in_j",
              "master_tank_j", "hand_tank_j", "master_limited_count", "hand_limited_count",
              "dropped_master_state", "dropped_force_command", "dropped_hand_command",
              "dropped_hand_state")
     cols = {n: getattr(result, n) for n in names}
+    if getattr(result, "has_audit", False):
+        rho = float(result.energy_scale)
+        cols["audit_margin_j"] = np.asarray(result.audit_margin_j, float)
+        cols["audit_throughput_j"] = np.array([
+            rho * (result.audit_operator_delivered_j[-1] + result.audit_operator_taken_j[-1])
+            + result.audit_environment_delivered_j[-1] + result.audit_environment_taken_j[-1]])
+        gap = result.ledger_audit_gap_j
+        cols["ledger_audit_gap_j"] = np.array([gap["operator"], gap["environment"]])
     return signals_from_columns(cols, cfg, float(result.initial_j))

@@ -30,6 +30,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="recording(s) (one joint fit; each has its own initial state)")
     p.add_argument("--model", choices=("axis", "finger"), default="axis",
                    help="nominal model: a generic 1-DoF axis, or the finger model")
+    p.add_argument("--finger", type=int, default=None, metavar="N",
+                   help="--model finger on a 'teleop up --record' hand recording: which finger "
+                   "(1-3); its set-points are the commands, contact rows are excluded")
     p.add_argument("--nominal", default="inertia,viscous,stiffness", metavar="TERMS",
                    help="axis terms the nominal model has: inertia, viscous, stiffness, gravity, "
                    "coulomb, offset; TERM=VALUE gives a nominal value refined within "

@@ -47,15 +47,25 @@ def _fmt_s(x: float | None) -> str:
     return "never" if x is None or not math.isfinite(x) else f"{x:.3f}"
 
 
+def _fmt_j(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.3f}"
+
+
 def table(doc: dict[str, Any]) -> str:
     """The human-readable table of a suite's JSON document."""
-    rows = [("scenario", "ok", "injected", "rejected", "energy viol.", "min margin J",
-             "recovery s", "limit viol.", "wd trips")]
+    rows = [("scenario", "ok", "injected", "rejected", "audit viol.", "audit min J",
+             "ledger viol.", "ledger min J", "gap op/env J", "recovery s", "limit viol.",
+             "wd trips")]
     for s in doc["scenarios"]:
-        margin = s["min_energy_margin_j"]
+        audited = s.get("passive_audit") is not None
+        gap = s.get("ledger_audit_gap_j") or {}
         rows.append((s["name"], "yes" if s["ok"] else "NO", str(s["injected"]),
-                     str(s["rejected"]), str(s["energy_violations"]),
-                     "-" if margin is None or not math.isfinite(margin) else f"{margin:.3f}",
+                     str(s["rejected"]),
+                     str(s["audit_violations"]) if audited else "no audit",
+                     _fmt_j(s.get("min_audit_margin_j")), str(s["energy_violations"]),
+                     _fmt_j(s["min_energy_margin_j"]),
+                     "/".join(_fmt_j(gap.get(k)) for k in ("operator", "environment"))
+                     if audited else "-",
                      _fmt_s(s["recovery_s"]), str(s["joint_limit_violations"]),
                      str(s["watchdog_trips"])))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -63,8 +73,14 @@ def table(doc: dict[str, Any]) -> str:
     lines.insert(1, "  ".join("-" * w for w in widths))
     lines.append("")
     lines.append(f"faults run: {doc['faults_run']}, passed: {doc['faults_passed']}, "
-                 f"messages rejected: {doc['messages_rejected']}, "
-                 f"energy violations: {doc['energy_violations']} ({doc['mode']})")
+                 f"messages rejected: {doc['messages_rejected']} ({doc['mode']})")
+    n_aud = doc.get("audited", 0)
+    lines.append(f"passivity by the physical audit: {doc.get('audit_violations', 0)} violating "
+                 f"samples in {n_aud} audited scenario(s); by the ledgers: "
+                 f"{doc['energy_violations']}")
+    for s in doc["scenarios"]:
+        if s.get("passive_audit") is None:
+            lines.append(f"no audit for {s['name']}: {s.get('audit', 'no physical audit')}")
     reasons = ", ".join(f"{k} {v}" for k, v in doc["rejects_by_reason"].items())
     lines.append(f"rejected by reason: {reasons or 'none'}")
     for s in doc["scenarios"]:

@@ -5,12 +5,15 @@ Examples::
     teleop sweep                                   # the default lockstep sweep (config [sweep])
     teleop sweep --json sweep.json --plot docs/sweep.png
     teleop sweep --mode live --delays 0,0.05,0.2 --losses 0 --controllers two-layer --duration 5
+    teleop sweep --grid full --json grid.json --plot grid.png    # heat maps grid-<ctrl>.png
+    teleop sweep --endurance --endurance-minutes 1 --json endurance.json
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from typing import TYPE_CHECKING
@@ -28,6 +31,7 @@ from teleop.errors import UserInputError
 
 if TYPE_CHECKING:
     from teleop.analysis.direct_limit import DirectPrediction
+    from teleop.analysis.grasps import GraspSeries
     from teleop.analysis.stability import RunSignals
     from teleop.analysis.sweep import SweepRun
     from teleop.config import TeleopConfig
@@ -67,6 +71,16 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--rerun", default=None, metavar="PATH",
                    help="log every run's signals to this .rrd file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    p.add_argument("--grid", choices=("full", "reduced"), default=None,
+                   help="robustness grid instead of the delay sweep: operator style x object x "
+                   "delay x loss (both links) x jitter x controller (docs/sweep.md); --plot "
+                   "writes one heat map per controller (<stem>-<controller>.png)")
+    p.add_argument("--endurance", action="store_true",
+                   help="endurance instead of the delay sweep: long runs of repeated grasps "
+                   "per controller at 0, 0.2 and 1 s delay, 20 %% loss on both links; every "
+                   "grasp against the first")
+    p.add_argument("--endurance-minutes", type=positive_float, default=10.0, metavar="MIN",
+                   help="simulated minutes per endurance run (default 10)")
     p.set_defaults(run=run)
 
 
@@ -115,9 +129,13 @@ class _Progress:
         fill = int(width * done / total)
         p = run.point
         state = "stable" if run.metrics.stable else "UNSTABLE"
+        state += "" if run.metrics.passive else " NOT passive"
+        elapsed = time.perf_counter() - self.t0
+        eta = elapsed * (total - done) / done if done else 0.0
         sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} "
-                         f"{time.perf_counter() - self.t0:5.1f}s  {p.controller} "
-                         f"{p.delay_s * 1000:.0f} ms loss {p.loss:.0%}: {state}      ")
+                         f"{elapsed:5.0f}s eta {eta:4.0f}s  {p.controller} {p.operator} "
+                         f"{p.object} {p.delay_s * 1000:.0f} ms loss {p.loss:.0%}: "
+                         f"{state}      ")
         sys.stderr.flush()
 
     def finish(self) -> None:
@@ -126,12 +144,35 @@ class _Progress:
             sys.stderr.flush()
 
 
+def _quiet_transport() -> None:
+    """Rejected-message warnings off: a sweep counts them (``dropped_messages``), and
+    hundreds of runs with jitter and loss would bury the progress bar."""
+    import logging
+
+    logging.getLogger("teleop.transport").setLevel(logging.ERROR)
+
+
 def lockstep_runner(cfg: TeleopConfig, duration_s: float) -> RunSignals:
     """One point through the services' lockstep runner (a picklable top-level function)."""
     from services.lockstep import run_lockstep
     from teleop.analysis.sweep_signals import signals_from_lockstep
 
+    _quiet_transport()
     return signals_from_lockstep(run_lockstep(cfg, duration_s), cfg)
+
+
+def lockstep_endurance_runner(cfg: TeleopConfig, duration_s: float
+                              ) -> tuple[RunSignals, GraspSeries]:
+    """One endurance run in lockstep: its signals and every grasp (picklable, top level)."""
+    from services.lockstep import run_lockstep
+    from teleop.analysis.sweep_endurance import grasps_from_columns
+    from teleop.analysis.sweep_signals import signals_from_lockstep
+
+    _quiet_transport()
+    res = run_lockstep(cfg, duration_s)
+    grasps = grasps_from_columns(res.t_s, res.trigger_position_m, res.pressure,
+                                 res.proximal_rad, res.displayed_force_n, cfg)
+    return signals_from_lockstep(res, cfg), grasps
 
 
 def live_runner(cfg: TeleopConfig, duration_s: float) -> RunSignals:
@@ -177,15 +218,61 @@ def predicted_limits(cfg: TeleopConfig) -> tuple[tuple[tuple[str, float], ...], 
     return (("direct", pred.one_way_s),), (note,)
 
 
+def _run_special(args: argparse.Namespace, cfg: TeleopConfig, controllers: tuple[str, ...],
+                 seed: int, workers: int | None) -> int:
+    """``--grid`` or ``--endurance``: lockstep only, all cores unless ``--workers``."""
+    if args.mode != "lockstep":
+        raise UserInputError("--grid/--endurance: lockstep mode only (--mode live given)")
+    workers = workers or os.cpu_count() or 1
+    progress = _Progress(not args.no_progress)
+    out = sys.stderr if args.json_path == "-" else sys.stdout
+    if args.grid:
+        from teleop.analysis.sweep_grid import GRIDS, format_grid, run_grid
+
+        spec = GRIDS[args.grid]
+        if args.duration is not None:
+            from dataclasses import replace
+
+            spec = replace(spec, duration_s=args.duration)
+        result = run_grid(cfg, spec, controllers, lockstep_runner, seed=seed,
+                          workers=workers, progress=progress)
+        progress.finish()
+        print(format_grid(result), file=out)
+    else:
+        from teleop.analysis.sweep_endurance import format_endurance, run_endurance
+
+        result = run_endurance(cfg, controllers, lockstep_endurance_runner,
+                               minutes=args.endurance_minutes, seed=seed, workers=workers,
+                               progress=progress)
+        progress.finish()
+        print(format_endurance(result), file=out)
+    print(f"{len(result.runs)} runs in {result.wall_s:.1f} s ({workers} workers)", file=out)
+    write_json(args.json_path, result.to_json())
+    if args.plot and args.grid:
+        from teleop.analysis.sweep_heatmap import plot_heatmaps
+
+        for path in plot_heatmaps(result, args.plot):
+            print(f"heat map: {path}", file=out)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the sweep and report."""
-    from teleop.analysis.sweep import format_table, run_delay_sweep
+    from teleop.analysis.sweep import run_delay_sweep
+    from teleop.analysis.sweep_report import format_table
     from teleop.config import apply_overrides
     from teleop.config.control import ControllerConfig
 
     cfg = config_from_args(args)
     sc = cfg.sweep
-    cfg = apply_overrides(apply_overrides(cfg, sc.scenario), args.overrides)  # --set wins
+    if args.grid and args.endurance:
+        raise UserInputError("--grid and --endurance: choose one")
+    if args.plot and args.endurance:
+        raise UserInputError("--plot: not available with --endurance (the per-grasp table "
+                             "is printed and in the JSON)")
+    if not args.endurance:  # endurance runs the configured operator's repeated grasps
+        cfg = apply_overrides(cfg, sc.scenario)
+    cfg = apply_overrides(cfg, args.overrides)  # --set wins
     known = ControllerConfig.__dataclass_fields__["kind"].metadata["choices"]
     delays = _floats(args.delays, sc.delays_s, "delays")
     losses = _floats(args.losses, sc.losses, "losses")
@@ -202,6 +289,12 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.json_path, "JSON")  # fail before the runs, not after them
     check_output_path(args.plot, "plot")
     check_output_path(args.rerun, "rerun log")
+    if args.grid or args.endurance:
+        if (args.rerun or args.delays or args.losses or args.refine is not None
+                or args.jitter is not None):
+            raise UserInputError("--grid/--endurance: --delays, --losses, --jitter, --refine "
+                                 "and --rerun apply to the delay sweep only")
+        return _run_special(args, cfg, controllers, seed, args.workers)
     if args.mode == "live":
         workers = 1  # real-time runs share the machine; one at a time keeps timing honest
     predicted, notes = predicted_limits(cfg)

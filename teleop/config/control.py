@@ -52,7 +52,9 @@ class PortModelConfig:
                                               "per shaft rad, 5 units/N, 12.2 mm spool, x 1.42^2)",
                                               unit="N m/rad", lo=1e-3, hi=1e4)
     servo_damping_nm_s_per_rad: float = param(0.8, "finger servo damping at the joint (lower "
-                                              "bound; dissipation credited to the hand tank)",
+                                              "bound, half of Table 4.1's smallest viscous "
+                                              "friction, 1.6; dissipation of closing motion "
+                                              "credited to the hand tank)",
                                               unit="N m s/rad", lo=0.0, hi=1e3)
     servo_torque_max_nm: float = param(3.55, "finger servo torque limit at the joint (upper "
                                        "bound; MX-28 2.5 N m stall x 1.42)", unit="N m",
@@ -61,6 +63,9 @@ class PortModelConfig:
                                          "slew rate at the joint: MX-28 55 rpm / 1.42), so the "
                                          "modelled servo spring matches the servo's own ramp",
                                          unit="rad/s", lo=1e-3, hi=1e6)
+    free_motion_refund: bool = param(True, "two-layer hand: the servo's work on a finger whose "
+                                     "tactile cells report no contact (before and after the "
+                                     "sample) stays in the hand and goes back to the tank")
 
 
 @dataclass(frozen=True, slots=True)

@@ -72,6 +72,8 @@ class ControlParams:
     force_filter_hz: float
     # delay-aware force gain (two-layer; None = off)
     delay_adapt: DelayAdaptParams | None = None
+    # two-layer hand: servo work on a finger touching nothing goes back to the tank
+    free_motion_refund: bool = True
 
 
 def control_params(cfg: ControllerConfig) -> ControlParams:
@@ -92,7 +94,8 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
         closed_angle_rad=tr.closed_angle_rad, map_exponent=tr.map_exponent,
         preshape_rad=tr.preshape_rad, force_per_pressure_n=tr.force_per_pressure_n,
         force_combine=tr.force_combine, force_filter_hz=tr.force_filter_hz,
-        delay_adapt=delay_adapt_params(cfg) if cfg.kind == "two-layer" else None)
+        delay_adapt=delay_adapt_params(cfg) if cfg.kind == "two-layer" else None,
+        free_motion_refund=pm.free_motion_refund)
 
 
 @dataclass(frozen=True, slots=True)

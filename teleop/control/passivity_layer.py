@@ -30,8 +30,11 @@ Triple = tuple[float, float, float]
 
 
 def servo_potential_j(e: float, stiffness: float, torque_max: float = math.inf) -> float:
-    """Energy of the (saturating) servo spring stretched by ``e``."""
-    a = abs(e)
+    """Energy the (saturating) servo spring stretched by ``e`` can deliver through the
+    tendon: zero for ``e <= 0`` (the tendon only pulls; see the module docstring)."""
+    if e <= 0.0:
+        return 0.0
+    a = e
     e_s = torque_max / stiffness
     if a <= e_s:
         return 0.5 * stiffness * a * a
@@ -50,7 +53,7 @@ def dissipation_lower_bound_j(x: Triple, x_prev: Triple, damping: float,
     """``B |x - x_prev|^2 / T``: energy the servo damping dissipated at least."""
     if dt_s <= 0.0:
         return 0.0
-    return damping * sum((a - b) ** 2 for a, b in zip(x, x_prev, strict=True)) / dt_s
+    return damping * sum(max(a - b, 0.0) ** 2 for a, b in zip(x, x_prev, strict=True)) / dt_s
 
 
 def pspm_project(desired: Triple, previous: Triple, x: Triple, budget_j: float,
@@ -65,9 +68,10 @@ def pspm_project(desired: Triple, previous: Triple, x: Triple, budget_j: float,
 
     if energy(1.0) <= allowed:
         return desired, energy(1.0) - p_prev, False
-    n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    # only closing components (d > 0) store energy; energy(1) > allowed >= 0 means one exists
+    n2 = sum(v * v for v in d if v > 0.0)
     lam_q = math.sqrt(2.0 * allowed / (stiffness * n2))  # quadratic-region solution
-    if all(abs(lam_q * v) * stiffness <= torque_max for v in d):
+    if all(lam_q * v * stiffness <= torque_max for v in d):
         lam = lam_q * (1.0 - 1e-12)  # shrink a hair so rounding never overdraws the tank
     else:
         lo, hi = 0.0, 1.0
@@ -83,3 +87,4 @@ def pspm_project(desired: Triple, previous: Triple, x: Triple, budget_j: float,
     if e_new > allowed:  # rounding at the edge: fall back to the always-affordable x
         y, e_new = x, 0.0
     return y, e_new - p_prev, True
+

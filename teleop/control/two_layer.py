@@ -33,6 +33,7 @@ from teleop.control.interface import ControllerOutput, ControlParams, HandOutput
 from teleop.control.passivity_layer import (
     dissipation_lower_bound_j,
     pspm_project,
+    servo_potential_j,
     spring_energy_j,
 )
 from teleop.control.transparency_layer import (
@@ -191,6 +192,7 @@ class HandPortState:
     x_prev: Triple | None = None
     setpoint_prev: Triple | None = None
     rx: TotalReceiver = field(default_factory=TotalReceiver)
+    contact_prev: tuple[bool, bool, bool] = (True, True, True)
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -234,11 +236,44 @@ def slew(want: Triple, prev: Triple, max_step: float) -> Triple:
                  for a, b in zip(want, prev, strict=True))
 
 
+def finger_contacts(fingers: tuple[FingerState, ...]) -> tuple[bool, bool, bool]:
+    """Per finger: does any tactile cell report contact (a missing finger counts as yes)."""
+    c = [any(f.contact) for f in fingers[:3]]
+    return tuple(c + [True] * (3 - len(c)))  # type: ignore[return-value]
+
+
+def free_motion_refund_j(s: HandPortState, p: ControlParams, x: Triple, y_prev: Triple,
+                         free: tuple[bool, bool, bool]) -> float:
+    """Signed change of the servo-spring energy that finger motion caused over the last
+    sample (set-point held), summed over the fingers that touched nothing at either end of
+    it: the servo's work on a finger in free motion stays inside the hand (its springs,
+    friction, rotor), so it goes back to the tank; energy the finger's springs push back
+    into the servo spring is charged the same way (``H + sum P`` stays constant)."""
+    if s.x_prev is None:
+        return 0.0
+    k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm
+    return sum(servo_potential_j(y_prev[i] - s.x_prev[i], k, tmax)
+               - servo_potential_j(y_prev[i] - x[i], k, tmax)
+               for i in range(3) if free[i])
+
+
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
-    """One hand-side sample: dissipation credit, quanta, set-position modulation."""
+    """One hand-side sample: dissipation credit, free-motion refund, quanta, set-position
+    modulation."""
     led = s.ledger
-    x, y_prev, d_j = sample_hand_port(s, p, fingers, dt_s)
+    x, y_prev, d_all = sample_hand_port(s, p, fingers, dt_s)
+    contact = finger_contacts(fingers)
+    free = tuple(not (a or b) for a, b in zip(contact, s.contact_prev, strict=True))
+    if p.free_motion_refund and any(free):
+        # free fingers: the refund replaces the damping credit (never both)
+        x_c = tuple(s.x_prev[i] if free[i] and s.x_prev is not None else x[i]
+                    for i in range(3))
+        d_j = (dissipation_lower_bound_j(x_c, s.x_prev, p.servo_damping_nm_s_per_rad, dt_s)
+               if s.x_prev is not None else 0.0)
+        d_j += free_motion_refund_j(s, p, x, y_prev, free)  # type: ignore[arg-type]
+    else:
+        d_j = d_all
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j + d_j + inc, p.max_j)
     send = quantum_j(tank, p.reserve_j, p.transfer_fraction)
@@ -257,4 +292,5 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
                      setpoint_desired_rad=want, limited=limited,
                      spring_energy_j=spring_energy_j(y, x, p.servo_stiffness_nm_per_rad,
                                                      p.servo_torque_max_nm))
-    return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx), out
+    return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx,
+                         contact_prev=contact), out

@@ -195,3 +195,53 @@ def test_controller_kill_holds_at_once_and_the_restart_resumes_without_a_jump(
         np.abs(np.diff(base.displayed_force_n)).max()
     assert recovery_time_s(t, r.hand_setpoint_rad, base.hand_setpoint_rad, 2.5) < 0.5
     assert r.energy_generated_j == 0.0
+
+
+def test_passivity_is_judged_by_the_physical_audit(suite: SuiteResult) -> None:
+    """Every lockstep scenario carries the physical audit (simulated operator and object) and
+    passes it; the ledgers are a second column with their gap to the audit reported."""
+    doc = suite.to_json()
+    assert doc["audited"] == 6 and doc["audit_violations"] == 0
+    for s in doc["scenarios"]:
+        if s["mode"] != "lockstep":
+            assert s["passive_audit"] is None and s["audit"].startswith("none")
+            continue
+        assert s["passive_audit"] is True and s["audit_violations"] == 0, s["name"]
+        assert s["audit"].startswith("physical")
+        assert s["min_audit_margin_j"] >= 0.0
+        assert s["audit_energy_generated_j"] == 0.0
+        assert set(s["ledger_audit_gap_j"]) == {"operator", "environment"}
+        assert all(np.isfinite(v) for v in s["ledger_audit_gap_j"].values())
+        assert s["ledger_energy_violations"] == s["energy_violations"] == 0
+
+
+def test_a_physical_violation_fails_the_scenario(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A hand that skips its set-point modulation (0.1 J tanks): the physical audit shows the
+    ports received more than the tanks held + what was taken, and the scenario fails on it."""
+    from teleop.control import two_layer
+    from teleop.control.passivity_layer import spring_energy_j
+
+    def project(desired, previous, x, budget, k, tau=float("inf")):  # type: ignore[no-untyped-def]
+        return desired, spring_energy_j(desired, x, k, tau) - spring_energy_j(previous, x,
+                                                                             k, tau), False
+
+    monkeypatch.setattr(two_layer, "pspm_project", project)
+    small = load_config(None, [*BASE_OVERRIDES, "controller.tank.initial_j=0.1",
+                               "controller.tank.reserve_j=0.0"])
+    sc = next(s for s in F.scenarios(True) if s.name == "link_cut")
+    base = run_lockstep(small, sc.duration_s, seed=1, hand=F._guard(small))
+    r = F.run_scenario(small, sc, base)
+    assert r.has_audit and r.audit_violations > 0 and not r.ok
+    assert any(f.startswith("physical energy audit") for f in r.failures)
+    assert r.to_json()["passive_audit"] is False
+
+
+def test_live_results_say_they_have_no_audit(cfg: TeleopConfig) -> None:
+    from services import faults_live
+
+    r = faults_live._judge("controller_restart", "kill", cfg, {}, {}, 1.0, 2.0, 0, {}, [],
+                           "", 0.0)
+    doc = r.to_json()
+    assert not r.has_audit and doc["passive_audit"] is None
+    assert doc["audit_violations"] is None and "live mode" in doc["audit"]

@@ -77,7 +77,7 @@ def clean_batch() -> tuple[Outcome, ...]:
 def test_concealed_effect_is_ranked_first_in_at_least_90_percent() -> None:
     batch = effect_batch()
     assert len(batch) >= 50 and {o.concealed[0] for o in batch} == set(EFFECT_NAMES)
-    hits = [o.diagnosis.effects[:1] and o.diagnosis.effects[0].name == o.concealed[0]
+    hits = [bool(o.diagnosis.effects) and o.diagnosis.effects[0].name == o.concealed[0]
             for o in batch]
     rate = float(np.mean(hits))
     misses = [(o.concealed[0], o.case.signal, [e.name for e in o.diagnosis.effects])

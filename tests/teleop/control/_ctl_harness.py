@@ -1,14 +1,22 @@
 """A closed loop for controller tests: operator + trigger, impaired links, controller, a
 first-order finger servo against a spring wall.  Exact energy bookkeeping of the physics.
 
-Physics (test side, independent of the controllers' own accounting):
+Physics (test side; nothing here is computed with controller code):
 * operator: mass-spring-damper finger on the trigger following a reference, plus random
   forcing; speed kept within the trigger's speed bound; hard stops at 0 and ``travel``;
-  the device force is held over each 1 ms step, so its work is exactly ``-F dx``.
+  the device force is held over each 1 ms step, so its work on the operator is exactly
+  ``-F dx`` (the operator port of the energy audit).
 * finger i: massless first-order servo ``B xdot = sat(K (y - x)) - k_e max(0, x - wall)``
-  (torque saturating at ``tau_max``) integrated by implicit Euler (a minimizing movement of a
-  convex energy: it can only dissipate), so the physical storage
-  ``S = sum P_servo(y - x) + k_e/2 pen^2`` changes only by set-point jumps.
+  (torque saturating at ``tau_max``, pulling both ways; no return spring) integrated by
+  implicit Euler.  The environment is the spring wall on the closing side; the work the
+  finger does on it over a step is exactly ``k_e/2 (pen1^2 - pen0^2)`` (the environment port
+  of the audit: positive delivered, negative taken back).
+
+The audit (:class:`Trace` ``op_*``/``env_*``) is the physical truth the tests judge by:
+passive = energy delivered at both ports <= initial tank energy + energy taken from them, at
+every sample.  It does not model the servo's own storage, so it is valid whatever potential
+the hand's passivity layer assumes for the servo (two-sided, or one-sided as for a tendon
+that only pulls).
 """
 
 from __future__ import annotations
@@ -20,7 +28,6 @@ import numpy as np
 
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.interface import ControllerSuite, ControlParams
-from teleop.control.passivity_layer import servo_potential_j
 from teleop.messages import FingerState, HandState, Header
 
 DT = 1e-3
@@ -94,11 +101,61 @@ class Trace:
     force_n: list[float] = field(default_factory=list)
     setpoint: list[tuple[float, float, float]] = field(default_factory=list)
     finger: list[tuple[float, float, float]] = field(default_factory=list)
-    master_net_out_j: list[float] = field(default_factory=list)  # true work on the operator
-    storage_j: list[float] = field(default_factory=list)  # true hand-side storage S
+    # physical energy audit, cumulative (J): work done on the operator / taken from it, and
+    # work the fingers did on the wall / the wall gave back
+    op_delivered_j: list[float] = field(default_factory=list)
+    op_taken_j: list[float] = field(default_factory=list)
+    env_delivered_j: list[float] = field(default_factory=list)
+    env_taken_j: list[float] = field(default_factory=list)
+    servo_storage_j: list[float] = field(default_factory=list)  # harness servo springs
     ledgers: list[tuple[EnergyLedger, EnergyLedger, EnergyLedger]] = field(default_factory=list)
     limited_master: int = 0
     limited_hand: int = 0
+
+    @property
+    def master_net_out_j(self) -> list[float]:
+        """Net work done on the operator so far (delivered - taken)."""
+        return [a - b for a, b in zip(self.op_delivered_j, self.op_taken_j, strict=True)]
+
+    @property
+    def env_net_out_j(self) -> list[float]:
+        """Net work done on the environment so far (delivered - taken)."""
+        return [a - b for a, b in zip(self.env_delivered_j, self.env_taken_j, strict=True)]
+
+    @property
+    def storage_j(self) -> list[float]:
+        """Physical storage of the hand side: the harness servo's (two-way, saturating)
+        spring energy plus the wall's ``k_e/2 pen^2`` (harness physics, not the controllers'
+        servo model).  Not part of the audit; for tests that look at how much the loop has
+        pumped into the hand."""
+        return [a + b for a, b in zip(self.servo_storage_j, self.env_net_out_j, strict=True)]
+
+    def audit_margin_j(self, initial_j: float, rho: float = 1.0) -> list[float]:
+        """``initial + taken - delivered`` at every sample (operator port weighted by
+        ``rho``, the power scale): >= 0 when the loop was passive."""
+        return [initial_j + rho * (ot - od) + (et - ed) for od, ot, ed, et in
+                zip(self.op_delivered_j, self.op_taken_j, self.env_delivered_j,
+                    self.env_taken_j, strict=True)]
+
+
+def initial_tank_j(suite: ControllerSuite, p: ControlParams) -> float:
+    """Initial tank energy of the loop from the configuration, in hand-side joules: one
+    ``initial_j`` tank per port (the master's weighted by the power scale), an empty
+    controller store; no tanks for a non-passive controller."""
+    return (p.energy_scale + 1.0) * p.initial_j if suite.passive else 0.0
+
+
+def audit_failure(tr: Trace, initial_j: float, rho: float = 1.0,
+                  tol_j: float = 1e-9) -> str:
+    """The first sample at which the physical audit shows energy generated (delivered >
+    initial + taken, or a non-finite value), described; "" when passive throughout."""
+    for k, m in enumerate(tr.audit_margin_j(initial_j, rho)):
+        if not math.isfinite(m):
+            return f"non-finite audit at sample {k}"
+        if m < -tol_j * max(1.0, initial_j):
+            return (f"sample {k}: delivered exceeds initial {initial_j:.4g} J + taken by "
+                    f"{-m:.4g} J")
+    return ""
 
 
 def reference(sc: Scenario, t: float, rng_ref: list[float]) -> float:
@@ -138,6 +195,12 @@ def servo_substep(x: float, y: float, wall: float, k: float, b: float, ke: float
     raise AssertionError("no consistent servo piece")  # pragma: no cover
 
 
+def servo_spring_j(e: float, k: float, tau: float) -> float:
+    """Energy of the harness servo's spring (``sat_tau(K e)``, both ways) stretched by ``e``."""
+    a, e_s = abs(e), tau / k
+    return 0.5 * k * a * a if a <= e_s else tau * (a - 0.5 * e_s)
+
+
 def finger_state(x: float, pen: float, sc: Scenario, load: float) -> FingerState:
     torque = sc.contact_stiffness * pen
     p = sc.pressure_per_nm * torque
@@ -163,7 +226,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
     xf = [0.0, 0.0, 0.0]
     y = (0.0, 0.0, 0.0)
     force = 0.0
-    net_out = 0.0
+    op_out = op_in = env_out = env_in = 0.0
     last_fc = last_ms = last_hs = last_hc = None
     fc_rx_t = hc_rx_t = 0.0  # when the latest command arrived (echo hold)
     tr = Trace()
@@ -203,8 +266,13 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
                                   echo_t_s=_echo(last_hc), echo_held_s=t - hc_rx_t))
         # physics over the next 1 ms with the force and set-points held
         for i in range(3):
+            pen0 = max(0.0, xf[i] - sc.wall_rad[i])
             xf[i] = servo_substep(xf[i], y[i], sc.wall_rad[i], k_s, b_s, sc.contact_stiffness,
                                   DT, tau_s)
+            pen1 = max(0.0, xf[i] - sc.wall_rad[i])
+            w_env = 0.5 * sc.contact_stiffness * (pen1 * pen1 - pen0 * pen0)
+            env_out += max(w_env, 0.0)
+            env_in += max(-w_env, 0.0)
         x_ref = reference(sc, t, rng_ref) * travel_m
         f_op = sc.op_stiffness * (x_ref - x) - sc.op_damping * v + forcing[k // 20]
         v += (f_op - force) / sc.op_mass_kg * DT
@@ -212,18 +280,21 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         x_new = min(max(x + v * DT, 0.0), travel_m)
         if x_new in (0.0, travel_m):
             v = 0.0
-        net_out += -force * (x_new - x)
+        w_op = -force * (x_new - x)
+        op_out += max(w_op, 0.0)
+        op_in += max(-w_op, 0.0)
         x = x_new
-        storage = sum(servo_potential_j(y[i] - xf[i], k_s, tau_s)
-                      + 0.5 * sc.contact_stiffness * max(0.0, xf[i] - sc.wall_rad[i]) ** 2
-                      for i in range(3))
         tr.t.append(t)
         tr.x_m.append(x)
         tr.force_n.append(force)
         tr.setpoint.append(y)
         tr.finger.append((xf[0], xf[1], xf[2]))
-        tr.master_net_out_j.append(net_out)
-        tr.storage_j.append(storage)
+        tr.op_delivered_j.append(op_out)
+        tr.op_taken_j.append(op_in)
+        tr.env_delivered_j.append(env_out)
+        tr.env_taken_j.append(env_in)
+        tr.servo_storage_j.append(sum(servo_spring_j(y[i] - xf[i], k_s, tau_s)
+                                      for i in range(3)))
         tr.ledgers.append((m_out.ledger, c_out.ledger, hand_out.ledger))  # type: ignore[union-attr]
         tr.limited_master += int(m_out.limited)
         tr.limited_hand += int(hand_out.limited)  # type: ignore[union-attr]
@@ -240,3 +311,46 @@ def _master_msg(out: object, k: int, t: float, last_fc: object, held_s: float) -
 
     return master_message(out, seq=k, t_s=t, echo_t_s=_echo(last_fc),  # type: ignore[arg-type]
                           echo_held_s=held_s)
+
+
+@dataclass
+class MasterRigTrace:
+    """Physical audit of the operator port of a master side driven by a scripted trigger."""
+
+    delivered_j: list[float] = field(default_factory=list)  # cumulative work on the operator
+    taken_j: list[float] = field(default_factory=list)  # cumulative work of the operator
+    force_n: list[float] = field(default_factory=list)
+
+    def margin_j(self, initial_j: float) -> list[float]:
+        """``initial + taken - delivered`` at every sample."""
+        return [initial_j + b - a for a, b in zip(self.delivered_j, self.taken_j, strict=True)]
+
+
+def run_master_rig(suite: ControllerSuite, p: ControlParams, positions_m: list[float],
+                   force_n: float) -> MasterRigTrace:
+    """The master side alone, its trigger moved along ``positions_m`` (one per 1 ms sample,
+    imposed by a stiff operator) while the controller asks for ``force_n`` in commands that
+    carry no energy (running total 0).  The operator-port work is the test's own physics:
+    the force the master decided at sample ``k-1`` is held while the trigger moves from
+    ``q(k-1)`` to ``q(k)``, so the device does ``-F(k-1) (q(k) - q(k-1))`` on the operator."""
+    from teleop.messages import ForceCommand
+
+    ms = suite.init_master(p)
+    tr = MasterRigTrace()
+    out_j = in_j = 0.0
+    force = 0.0
+    q_prev: float | None = None
+    for k, q in enumerate(positions_m):
+        if q_prev is not None:
+            w = -force * (q - q_prev)
+            out_j += max(w, 0.0)
+            in_j += max(-w, 0.0)
+        cmd = ForceCommand(header=Header(seq=k + 1, t_s=k * DT, energy_total_j=0.0),
+                           force_n=force_n)
+        ms, mo = suite.step_master(ms, p, q, cmd, DT)
+        force = mo.force_n
+        q_prev = q
+        tr.delivered_j.append(out_j)
+        tr.taken_j.append(in_j)
+        tr.force_n.append(force)
+    return tr

@@ -1,0 +1,74 @@
+"""Physical energy audit of the hand's environment port: work the fingers do on the object.
+
+Computed from the simulated physics only (finger geometry and the contact object's law),
+never from controller code, so a controller's own energy books can be checked against it.
+
+The object is the compliant body of :mod:`sim.contact`: along each pad's contact normal it
+pushes back with ``k s d + c s d'`` (``d`` the penetration depth, ``s`` the engaged fraction
+of the pad, never a pull).  The energy it takes from a finger over a physics step in which
+the depth goes from ``d0`` to ``d1`` is the force times the depth change: trapezoidal in the
+elastic part (exact for the linear spring), the damper at the mean rate ``(d1 - d0) / dt``.
+Positive work is energy delivered to the environment, negative work energy taken from it
+(the object's springs pushing the finger back).
+
+Usage (``SimHand`` does this at every physics step when its audit is on)::
+
+    before = pad_depths(fs0, params, obj)
+    after = pad_depths(fs1, params, obj)
+    w = object_work_j(before, after, obj, dt_s)
+"""
+
+from __future__ import annotations
+
+import math
+
+from sim.contact import ContactObject, pad_contact
+from sim.params import FingerParams
+from sim.readout import distal_origin
+from sim.state import FingerState
+
+_PROX_PAD_START_M = 0.010  # where the proximal pad starts along the link (as sim.finger)
+
+#: (stiffness scale, depth m) of the proximal and distal pads
+PadDepths = tuple[float, float, float, float]
+NO_CONTACT: PadDepths = (0.0, 0.0, 0.0, 0.0)
+
+
+def pad_depths(state: FingerState, p: FingerParams, obj: ContactObject) -> PadDepths:
+    """Engaged fraction and penetration depth of both pads of one finger in ``obj``."""
+    if obj.kind == "none":
+        return NO_CONTACT
+    phi = state.prox_rad
+    cphi, sphi = math.cos(phi), math.sin(phi)
+    po = p.pad_offset_m
+    s_p, d_p, _, _, _ = pad_contact(obj, cphi, sphi, _PROX_PAD_START_M, po,
+                                    p.proximal_rigid_m, po)
+    x, y, ca, sa = distal_origin(state, p)
+    ax, ay = x - sa * po, y + ca * po
+    bx, by = ax + ca * p.distal_length_m, ay + sa * p.distal_length_m
+    s_d, d_d, _, _, _ = pad_contact(obj, cphi, sphi, ax, ay, bx, by)
+    return (s_p, max(d_p, 0.0), s_d, max(d_d, 0.0))
+
+
+def _pad_work(s0: float, d0: float, s1: float, d1: float, obj: ContactObject,
+              dt_s: float) -> float:
+    if d0 <= 0.0 and d1 <= 0.0:
+        return 0.0
+    k, c = obj.stiffness_n_per_m, obj.damping_n_s_per_m
+    dd = d1 - d0
+    elastic = 0.5 * (k * s0 * d0 + k * s1 * d1)
+    damping = c * 0.5 * (s0 + s1) * dd / dt_s if dt_s > 0.0 else 0.0
+    force = max(elastic + damping, 0.0)
+    return force * dd
+
+
+def object_work_j(before: PadDepths, after: PadDepths, obj: ContactObject,
+                  dt_s: float) -> float:
+    """Work the finger did on the object over one physics step (+ delivered, - taken)."""
+    if obj.kind == "none":
+        return 0.0
+    return (_pad_work(before[0], before[1], after[0], after[1], obj, dt_s)
+            + _pad_work(before[2], before[3], after[2], after[3], obj, dt_s))
+
+
+__all__ = ["NO_CONTACT", "PadDepths", "object_work_j", "pad_depths"]

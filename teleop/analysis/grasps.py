@@ -1,0 +1,141 @@
+"""Every grasp of a run judged against the first (endurance; lockstep and live recordings).
+
+A grasp is found from the trigger alone: it starts when the trigger closes past
+``threshold_m`` (after having opened below half of it: hysteresis) and lasts until the next
+such start (so the hand's delayed response and the release belong to it); a grasp still
+closed at the end of the run is incomplete and dropped.  The threshold is low (a tenth of the
+travel by default) because the displayed force holds the trigger well short of where the
+operator aims while the hand is in contact.
+Per grasp: peak pressure (largest taxel of any finger), closure (largest finger angle), felt
+force (largest displayed force), and each over the first grasp's.
+
+Example::
+
+    g = analyse_grasps(t, trigger_m, pressure, proximal_rad, displayed_n, threshold_m=0.006)
+    g.min_pressure_ratio      # the weakest grasp's peak pressure over the first's
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+__all__ = ["GraspStats", "GraspSeries", "grasp_windows", "analyse_grasps", "format_grasps"]
+
+
+@dataclass(frozen=True, slots=True)
+class GraspStats:
+    """One grasp."""
+
+    index: int
+    t_start_s: float
+    t_end_s: float
+    peak_pressure: float
+    closure_rad: float
+    felt_force_n: float
+    pressure_ratio: float  # over the first grasp's (nan when the first has none)
+    closure_ratio: float
+    felt_ratio: float
+
+
+@dataclass(frozen=True, slots=True)
+class GraspSeries:
+    """All complete grasps of a run."""
+
+    grasps: tuple[GraspStats, ...]
+
+    @property
+    def min_pressure_ratio(self) -> float:
+        """The weakest grasp's peak pressure over the first's (nan: fewer than one grasp)."""
+        vals = [g.pressure_ratio for g in self.grasps]
+        return min(vals) if vals and all(math.isfinite(v) for v in vals) else math.nan
+
+    @property
+    def min_felt_ratio(self) -> float:
+        vals = [g.felt_ratio for g in self.grasps if math.isfinite(g.felt_ratio)]
+        return min(vals) if vals else math.nan
+
+    @property
+    def min_closure_ratio(self) -> float:
+        vals = [g.closure_ratio for g in self.grasps if math.isfinite(g.closure_ratio)]
+        return min(vals) if vals else math.nan
+
+    def rows(self) -> list[dict[str, float]]:
+        """JSON rows (nan left to the writer)."""
+        return [{"grasp": g.index, "t_start_s": g.t_start_s, "t_end_s": g.t_end_s,
+                 "peak_pressure": g.peak_pressure, "closure_rad": g.closure_rad,
+                 "felt_force_n": g.felt_force_n, "pressure_ratio": g.pressure_ratio,
+                 "closure_ratio": g.closure_ratio, "felt_ratio": g.felt_ratio}
+                for g in self.grasps]
+
+
+def grasp_windows(t_s: Array, trigger_m: Array, threshold_m: float) -> list[tuple[float, float]]:
+    """(start, end) of every complete grasp: closing past ``threshold_m`` (after opening below
+    half of it) to the next such closing, or the end of the run for the last."""
+    t = np.asarray(t_s, float)
+    x = np.nan_to_num(np.asarray(trigger_m, float), nan=0.0)
+    hi, lo = x > threshold_m, x < 0.5 * threshold_m
+    marks = np.where(hi, 1, np.where(lo, -1, 0))
+    idx = np.flatnonzero(marks)
+    if not idx.size:
+        return []
+    state = marks[idx]
+    change = np.flatnonzero(np.diff(state)) + 1
+    starts = [int(idx[0])] if state[0] == 1 else []
+    starts += [int(idx[k]) for k in change if state[k] == 1]
+    opens = [int(idx[k]) for k in change if state[k] == -1]
+    out = []
+    for k, i in enumerate(starts):
+        if not any(j > i for j in opens):
+            break  # still closed at the end: incomplete
+        end = t[starts[k + 1]] if k + 1 < len(starts) else t[-1]
+        out.append((float(t[i]), float(end)))
+    return out
+
+
+def _ratio(v: float, first: float) -> float:
+    return v / first if first > 0 and math.isfinite(first) else math.nan
+
+
+def analyse_grasps(t_s: Array, trigger_m: Array, pressure: Array, finger_rad: Array,
+                   displayed_force_n: Array, threshold_m: float) -> GraspSeries:
+    """Per-grasp peak pressure, closure and felt force, and each over the first grasp's.
+
+    ``pressure``: (n, k) taxels; ``finger_rad``: (n, fingers) joint angles.
+    """
+    t = np.asarray(t_s, float)
+    p = np.nan_to_num(np.asarray(pressure, float).reshape(len(t), -1), nan=0.0)
+    q = np.nan_to_num(np.asarray(finger_rad, float).reshape(len(t), -1), nan=-np.inf)
+    f = np.nan_to_num(np.asarray(displayed_force_n, float), nan=0.0)
+    raw = []
+    for a, b in grasp_windows(t, trigger_m, threshold_m):
+        m = (t >= a) & (t < b) if b > a else (t >= a)
+        raw.append((a, b, float(p[m].max(initial=0.0)), float(q[m].max(initial=-np.inf)),
+                    float(f[m].max(initial=0.0))))
+    if not raw:
+        return GraspSeries(())
+    _, _, p0, q0, f0 = raw[0]
+    return GraspSeries(tuple(
+        GraspStats(i, a, b, pk, cl, fe, _ratio(pk, p0), _ratio(cl, q0), _ratio(fe, f0))
+        for i, (a, b, pk, cl, fe) in enumerate(raw)))
+
+
+def format_grasps(series: GraspSeries, every: int = 1) -> str:
+    """A per-grasp table (every ``every``-th grasp, and always the weakest and the last)."""
+    head = (f"{'grasp':>5} {'t_s':>7} {'peak_p':>7} {'p/p0':>6} {'closure':>8} {'c/c0':>6} "
+            f"{'felt_N':>7} {'f/f0':>6}")
+    lines = [head]
+    gs = series.grasps
+    weakest = min(gs, key=lambda g: g.pressure_ratio, default=None)
+    for g in gs:
+        if g.index % every and g is not weakest and g is not gs[-1]:
+            continue
+        lines.append(f"{g.index:5d} {g.t_start_s:7.1f} {g.peak_pressure:7.0f} "
+                     f"{g.pressure_ratio:6.2f} {g.closure_rad:8.3f} {g.closure_ratio:6.2f} "
+                     f"{g.felt_force_n:7.2f} {g.felt_ratio:6.2f}")
+    return "\n".join(lines)

@@ -1,0 +1,66 @@
+"""An independent generator of ``teleop up --record`` style hand recordings for the diagnose
+tests: the simulated hand behind the hand-backend interface (:class:`sim.sim_hand.SimHand`:
+the whole hand stepped at 1 kHz, encoders quantised and noisy as the driver reads them), finger
+parameters a few percent off the calibrated ones, set-points held between irregular 40 Hz
+ticks, columns named as the hand service names them.  The diagnosis never sees these values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from sim.hand import default_hand_params
+from sim.sim_hand import SimHand
+from teleop.config import load_config
+from teleop.effects import EffectSet
+from teleop.messages import HandCommand, Header
+from teleop.recording import Recording, write_recording
+
+OFF_NOMINAL = {"units_per_n": 1.04, "motor_coulomb_units": 0.95, "k_base_nm_per_rad": 1.03}
+
+
+def setpoints(rng: np.random.Generator, t: np.ndarray, max_rad: float = 2.5) -> np.ndarray:
+    """Joint set-points: random holds and ramps between 0 and ``max_rad``, as a grasp cycle."""
+    out = np.zeros(len(t))
+    level, target, t_next = 0.0, 0.0, 0.0
+    for i, ti in enumerate(t):
+        if ti >= t_next:
+            target = float(rng.uniform(0.0, max_rad))
+            t_next = ti + float(rng.uniform(0.6, 1.6))
+        level += np.clip(target - level, -0.08, 0.08) if rng.random() < 0.5 else target - level
+        out[i] = level
+    return out
+
+
+def hand_recording(path: Path, seconds: float, seed: int, effects: EffectSet = EffectSet(),
+                   obj: str = "none", max_rad: float = 2.5) -> Path:
+    """Write a hand recording (finger 1 driven; fingers 2 and 3 follow at lower set-points)."""
+    rng = np.random.default_rng(seed)
+    cfg = load_config(None, [f"hand.sim.object.kind={obj}", "hand.sim.noise=true"])
+    hand = SimHand(cfg.hand, seed=seed, effects=effects)
+    fp = hand.params.finger
+    hand.params = default_hand_params(replace(fp, **{k: getattr(fp, k) * f
+                                                     for k, f in OFF_NOMINAL.items()}))
+    hand.start()
+    dt = np.full(int(seconds * 40), 0.025) + rng.uniform(-0.002, 0.002, int(seconds * 40))
+    t = np.cumsum(dt) - dt[0]
+    sp = setpoints(rng, t, max_rad)
+    cols: dict[str, list[float]] = {k: [] for k in (
+        "t_s", *(f"{n}_f{i}" for n in ("proximal_angle_rad", "motor_angle_rad", "contacts",
+                                       "setpoint_rad") for i in (1, 2, 3)))}
+    for ti, s in zip(t, sp, strict=True):
+        r = hand.read(float(ti))
+        sps = (float(s), 0.6 * float(s), 0.3 * float(s))
+        hand.apply(HandCommand(Header(0, float(ti), 0.0), sps, 0.0))
+        cols["t_s"].append(float(ti) + 3.0)
+        for i, f in enumerate(r.fingers, 1):
+            cols[f"proximal_angle_rad_f{i}"].append(f.proximal_rad)
+            cols[f"motor_angle_rad_f{i}"].append(f.motor_angle_rad)
+            cols[f"contacts_f{i}"].append(float(sum(f.contact)))
+            cols[f"setpoint_rad_f{i}"].append(sps[i - 1])
+    write_recording(path, Recording.from_columns(cols, meta=(("role", "hand"),
+                                                             ("rate_hz", "40"))))
+    return path

@@ -1,0 +1,314 @@
+"""Mutation check: each breakage of the passivity layers must make a physics-judged check fail.
+
+Every check is judged from physics the test computes itself, never from the controllers'
+ledgers: the operator-port work of a scripted trigger (``run_master_rig``), the energy audit
+of the closed-loop harness (``run_loop``: work on the operator and on the spring wall), or the
+physical audit of a lockstep run with the simulated operator and hand
+(``LockstepResult.audit_margin_j``, from ``sim.operator``/``sim.audit``).  Tanks are small
+(0.05-0.1 J) so the bound bites.  Each check passes on the unpatched code
+(``test_check_passes_unpatched``) and fails for its mutants (``test_mutant_is_caught``).
+
+Each mutant ``apply(mp)`` patches the code with a pytest ``MonkeyPatch``.  Functions are
+imported by name into :mod:`teleop.control.two_layer`, so they are patched there; whole
+steps are replaced in the registry (``CONTROLLERS``), where the harness and the services
+look the suite up.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pytest
+from _ctl_harness import Scenario, audit_failure, initial_tank_j, run_loop, run_master_rig
+
+from services.lockstep import LockstepContext, run_lockstep
+from teleop.config import load_config
+from teleop.config.control import ControllerConfig
+from teleop.control import two_layer
+from teleop.control.energy_channel import TotalReceiver
+from teleop.control.energy_tank import port_work_j
+from teleop.control.interface import ControlParams, control_params
+from teleop.control.passivity_layer import dissipation_lower_bound_j, spring_energy_j
+from teleop.control.registry import CONTROLLERS
+from teleop.transport import bus
+
+Mutant = Callable[[pytest.MonkeyPatch], None]
+
+#: energy the "store below zero" controller forwards every sample beyond what it holds
+OVERDRAFT_J = 2e-4
+
+
+def _replace_suite(mp: pytest.MonkeyPatch, **steps: Callable[..., Any]) -> None:
+    mp.setitem(CONTROLLERS, "two-layer", replace(CONTROLLERS["two-layer"], **steps))
+
+
+def port_work_sign_flipped(mp: pytest.MonkeyPatch) -> None:
+    """The master's tank credits the work it does on the operator instead of paying it."""
+    mp.setattr(two_layer, "port_work_j", lambda f, dq: -port_work_j(f, dq))
+
+
+def dissipation_over_credited(mp: pytest.MonkeyPatch) -> None:
+    """The hand's tank is credited 50x the servo damping's dissipation lower bound."""
+    mp.setattr(two_layer, "dissipation_lower_bound_j",
+               lambda x, xp, b, dt: 50.0 * dissipation_lower_bound_j(x, xp, b, dt))
+
+
+def franken_limiter_removed(mp: pytest.MonkeyPatch) -> None:
+    """The master's desired force is not limited against ``H - H_min``."""
+    mp.setattr(two_layer, "franken_limit", lambda f, v, budget, dt: f)
+
+
+def guard_removed(mp: pytest.MonkeyPatch) -> None:
+    """The master's hard guard ``|F| <= H / (max(v_max, |v|) T)`` is gone."""
+    mp.setattr(two_layer, "guard_force", lambda f, tank, v, vmax, dt: f)
+
+
+def setpoint_modulation_skipped(mp: pytest.MonkeyPatch) -> None:
+    """The hand applies the desired set-point whatever it costs (its tank still pays)."""
+    def project(desired: Any, previous: Any, x: Any, budget: float, k: float,
+                tau: float = math.inf) -> tuple[Any, float, bool]:
+        dp = spring_energy_j(desired, x, k, tau) - spring_energy_j(previous, x, k, tau)
+        return desired, dp, False
+    mp.setattr(two_layer, "pspm_project", project)
+
+
+def quanta_as_increments(mp: pytest.MonkeyPatch) -> None:
+    """Every sender puts its per-sample quantum on the message instead of the running total,
+    and every receiver credits the value it finds in a message."""
+    suite = CONTROLLERS["two-layer"]
+
+    def credit(rx: TotalReceiver, total: float | None) -> tuple[TotalReceiver, float]:
+        if total is None or not math.isfinite(total) or total <= 0.0:
+            return rx, 0.0
+        return rx, total
+
+    def step_master(s: Any, *a: Any) -> Any:
+        ns, out = suite.step_master(s, *a)
+        return ns, replace(out, energy_total_j=ns.ledger.sent_j - s.ledger.sent_j)
+
+    def step_controller(s: Any, *a: Any) -> Any:
+        ns, co = suite.step_controller(s, *a)
+        fc, hc = co.force_command, co.hand_command
+        fc = replace(fc, header=replace(fc.header, energy_total_j=ns.sent_to_master_j
+                                        - s.sent_to_master_j))
+        hc = replace(hc, header=replace(hc.header, energy_total_j=ns.sent_to_hand_j
+                                        - s.sent_to_hand_j))
+        return ns, replace(co, force_command=fc, hand_command=hc)
+
+    def step_hand(s: Any, *a: Any) -> Any:
+        ns, out = suite.step_hand(s, *a)
+        return ns, replace(out, energy_total_j=ns.ledger.sent_j - s.ledger.sent_j)
+
+    mp.setattr(two_layer, "receive_total", credit)
+    _replace_suite(mp, step_master=step_master, step_controller=step_controller,
+                   step_hand=step_hand)
+
+
+def store_below_zero(mp: pytest.MonkeyPatch) -> None:
+    """The controller forwards ``OVERDRAFT_J`` per sample more than its store holds (split
+    as usual), so its store goes below zero; its books still balance."""
+    suite = CONTROLLERS["two-layer"]
+
+    def step_controller(s: Any, p: Any, *a: Any) -> Any:
+        ns, co = suite.step_controller(s, p, *a)
+        to_h = p.controller_split * OVERDRAFT_J
+        to_m = (OVERDRAFT_J - to_h) / p.energy_scale
+        led = replace(ns.ledger, tank_j=ns.ledger.tank_j - OVERDRAFT_J,
+                      sent_j=ns.ledger.sent_j + OVERDRAFT_J)
+        ns = replace(ns, ledger=led, sent_to_master_j=ns.sent_to_master_j + to_m,
+                     sent_to_hand_j=ns.sent_to_hand_j + to_h)
+        fc, hc = co.force_command, co.hand_command
+        fc = replace(fc, header=replace(fc.header, energy_total_j=ns.sent_to_master_j))
+        hc = replace(hc, header=replace(hc.header, energy_total_j=ns.sent_to_hand_j))
+        return ns, replace(co, force_command=fc, hand_command=hc, ledger=led)
+
+    _replace_suite(mp, step_controller=step_controller)
+
+
+def epoch_credited_on_restart(mp: pytest.MonkeyPatch) -> None:
+    """Every new sender epoch (a restart on either side) is credited from zero: the first
+    total a (re)started receiver sees counts in full, as if it were the sender's first."""
+    mp.setattr(bus, "FIRST_SEQ", 2 ** 62)
+
+
+def refund_in_contact(mp: pytest.MonkeyPatch) -> None:
+    """The free-motion refund is paid whatever the tactile cells say (contact ignored)."""
+    mp.setattr(two_layer, "finger_contacts", lambda fingers: (False, False, False))
+
+
+def two_sided_damping_credit(mp: pytest.MonkeyPatch) -> None:
+    """Opening motion is credited too, although the one-sided servo potential never charged
+    the servo's push that drives it."""
+    def credit(x: Any, xp: Any, b: float, dt: float) -> float:
+        return b * sum((u - v) ** 2 for u, v in zip(x, xp, strict=True)) / dt if dt > 0 else 0.0
+    mp.setattr(two_layer, "dissipation_lower_bound_j", credit)
+
+
+MUTANTS: dict[str, Mutant] = {
+    "port_work_sign_flipped": port_work_sign_flipped,
+    "dissipation_over_credited_x50": dissipation_over_credited,
+    "franken_limiter_removed": franken_limiter_removed,
+    "guard_removed": guard_removed,
+    "quanta_as_increments": quanta_as_increments,
+    "store_below_zero": store_below_zero,
+    "setpoint_modulation_skipped": setpoint_modulation_skipped,
+    "epoch_credited_on_restart": epoch_credited_on_restart,
+    "refund_in_contact": refund_in_contact,
+    "two_sided_damping_credit": two_sided_damping_credit,
+}
+
+
+# ------------------------------------------------------------------------------ the checks
+TOL_J = 1e-9
+
+
+def _params(**kw: float) -> ControlParams:
+    return replace(control_params(ControllerConfig(kind="two-layer")), **kw)
+
+
+def _rig_failure(positions: list[float], force_n: float, keep_reserve: bool) -> str:
+    """Master side alone, fed commands that carry no energy: the work done on the operator
+    must stay within its initial tank + the work taken from the operator (and, with
+    ``keep_reserve``, leave the tank's reserve ``H_min`` untouched)."""
+    p = _params(initial_j=0.05)
+    tr = run_master_rig(CONTROLLERS["two-layer"], p, positions, force_n)
+    floor = p.min_j if keep_reserve else 0.0
+    worst = min(tr.margin_j(p.initial_j))
+    if worst < floor - TOL_J:
+        return (f"operator port: margin {worst:.4g} J < {floor:.4g} J "
+                f"(delivered {tr.delivered_j[-1]:.4g} J, taken {tr.taken_j[-1]:.4g} J)")
+    return ""
+
+
+#: the trigger at rest at 25 mm for 0.1 s, opened steadily to 0 over 1 s, at rest 0.1 s
+STEADY_RELEASE = ([0.025] * 100 + [0.025 * (1.0 - k / 1000) for k in range(1001)]
+                  + [0.0] * 100)
+#: the trigger shaken by 0.9 mm every sample (0.9 m/s, within the 1 m/s speed bound)
+ZIGZAG = [0.0125 + (0.0009 if k % 2 else 0.0) for k in range(1500)]
+
+
+def master_passive_steady() -> str:
+    """The device pushes (5 N) while the operator opens the trigger steadily."""
+    return _rig_failure(STEADY_RELEASE, 5.0, keep_reserve=False)
+
+
+def master_keeps_reserve_steady() -> str:
+    """As above; for steady motion Franken's limiter (which predicts the next sample's
+    energy from the last velocity) stops the delivery at ``H_min``, so the operator gets at
+    most ``initial - H_min`` + what it put in."""
+    return _rig_failure(STEADY_RELEASE, 5.0, keep_reserve=True)
+
+
+def master_passive_zigzag() -> str:
+    """The device pushes (8 N) while the trigger reverses every sample: the last velocity
+    predicts nothing, only the hard guard keeps the tank from being overdrawn."""
+    return _rig_failure(ZIGZAG, 8.0, keep_reserve=False)
+
+
+#: the operator closes slowly (full at 3 s) and holds; the fingers meet the wall at 0.3 rad
+SQUEEZE = Scenario(seed=1, steps=4000, wall_rad=(0.3, 0.3, 0.3), hand_every=25,
+                   ref_period_s=6.0, op_stiffness=1000.0)
+
+
+def loop_passive_squeeze() -> str:
+    """Closed-loop harness, 0.1 J tanks: energy delivered to the operator and to the wall <=
+    initial tanks + energy taken from them, at every sample (harness physics)."""
+    p = _params(initial_j=0.1, reserve_j=0.02)
+    suite = CONTROLLERS["two-layer"]
+    return audit_failure(run_loop(suite, p, SQUEEZE), initial_tank_j(suite, p))
+
+
+#: lockstep: 0.1 J tanks, no reserve, half the surplus sent each sample (so energy flows)
+LOCKSTEP_OVERRIDES = ("controller.tank.initial_j=0.1", "controller.tank.reserve_j=0.0",
+                      "controller.tank.transfer_fraction=0.5",
+                      "controller.tank.controller_fraction=0.5")
+RESTART_AT_S = 1.5
+
+
+def lockstep_passive_with_restart() -> str:
+    """Lockstep run of the three services with the simulated operator (repeated grasps) and
+    hand, the controller restarted at 1.5 s: the physical audit (``sim.operator`` /
+    ``sim.audit``) must show delivered <= initial tanks + taken at every sample."""
+    cfg = load_config(None, list(LOCKSTEP_OVERRIDES))
+
+    def hook(t_s: float, ctx: LockstepContext) -> None:
+        if t_s >= RESTART_AT_S and ctx.controller_restarts == 0:
+            ctx.restart_controller()
+
+    r = run_lockstep(cfg, 5.0, seed=1, hook=hook)
+    assert r.has_audit
+    worst = float(np.min(r.audit_margin_j))
+    if worst < -TOL_J:
+        return f"lockstep audit: margin {worst:.4g} J at t = {r.t_s[np.argmin(r.audit_margin_j)]} s"
+    return ""
+
+
+#: repeated grasps into the wall with the hand at 40 Hz: opening and closing every second
+CYCLES = Scenario(seed=3, steps=8000, hand_every=25, ref_period_s=1.0, ref_fraction=1.0,
+                  wall_rad=(0.6, 0.6, 0.6))
+
+
+def loop_passive_cycles() -> str:
+    """Closed-loop harness, 0.1 J tanks, eight open-close cycles into the wall: the audit of
+    the harness physics (work on the operator and on the wall) at every sample."""
+    p = _params(initial_j=0.1, reserve_j=0.02)
+    suite = CONTROLLERS["two-layer"]
+    return audit_failure(run_loop(suite, p, CYCLES), initial_tank_j(suite, p))
+
+
+def lockstep_passive_grasps() -> str:
+    """Lockstep run, 8 s of the virtual operator's repeated grasps on the simulated hand,
+    0.1 J tanks: the physical audit at every sample."""
+    r = run_lockstep(load_config(None, list(LOCKSTEP_OVERRIDES)), 8.0, seed=1)
+    assert r.has_audit
+    worst = float(np.min(r.audit_margin_j))
+    if worst < -TOL_J:
+        return f"lockstep audit: margin {worst:.4g} J at t = {r.t_s[np.argmin(r.audit_margin_j)]} s"
+    return ""
+
+
+CHECKS: dict[str, Callable[[], str]] = {
+    "master_passive_steady": master_passive_steady,
+    "master_keeps_reserve_steady": master_keeps_reserve_steady,
+    "master_passive_zigzag": master_passive_zigzag,
+    "loop_passive_squeeze": loop_passive_squeeze,
+    "lockstep_passive_with_restart": lockstep_passive_with_restart,
+    "loop_passive_cycles": loop_passive_cycles,
+    "lockstep_passive_grasps": lockstep_passive_grasps,
+}
+
+#: which check catches which mutant
+CAUGHT_BY: dict[str, str] = {
+    "port_work_sign_flipped": "master_passive_steady",
+    "dissipation_over_credited_x50": "loop_passive_squeeze",
+    "franken_limiter_removed": "master_keeps_reserve_steady",
+    "guard_removed": "master_passive_zigzag",
+    "quanta_as_increments": "lockstep_passive_grasps",
+    "store_below_zero": "loop_passive_squeeze",
+    "setpoint_modulation_skipped": "loop_passive_squeeze",
+    "epoch_credited_on_restart": "lockstep_passive_with_restart",
+    "refund_in_contact": "loop_passive_squeeze",
+    "two_sided_damping_credit": "loop_passive_cycles",
+}
+
+
+def test_every_mutant_has_a_check() -> None:
+    assert set(CAUGHT_BY) == set(MUTANTS)
+    assert set(CAUGHT_BY.values()) == set(CHECKS)
+
+
+@pytest.mark.parametrize("check", sorted(CHECKS))
+def test_check_passes_unpatched(check: str) -> None:
+    fail = CHECKS[check]()
+    assert not fail, fail
+
+
+@pytest.mark.parametrize("mutant", sorted(MUTANTS))
+def test_mutant_is_caught(mutant: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    MUTANTS[mutant](monkeypatch)
+    fail = CHECKS[CAUGHT_BY[mutant]]()
+    assert fail, f"{mutant} passed {CAUGHT_BY[mutant]}"
