@@ -92,7 +92,8 @@ class ControllerService:
             store_j=led.tank_j, sent_j=led.sent_j, received_j=led.received_j,
             dissipated_j=led.dissipated_j, master_delay_s=m_delay, hand_delay_s=h_delay,
             master_dropped=float(self.master_dropped), hand_dropped=float(self.hand_dropped),
-            watchdog=float(self.wd.tripped))
+            watchdog=float(self.wd.tripped), force_gain=out.force_gain,
+            round_trip_s=out.round_trip_s)
 
     def close(self) -> None:
         """Nothing to release."""

@@ -29,7 +29,7 @@ from services.suites import get_suite
 from services.watchdog import WatchdogState, hand_command_watchdog, watchdog_step
 from teleop.config import TeleopConfig
 from teleop.control.energy_channel import EnergyLedger
-from teleop.control.interface import ControllerSuite, control_params
+from teleop.control.interface import ControllerSuite, ControlParams, control_params
 from teleop.devices.base import HandBackend, HandReading
 from teleop.messages import HandCommand, HandMode, HandState, Header
 from teleop.transport.bus import Bus
@@ -50,6 +50,22 @@ def clamp_command(cmd: HandCommand, finger_max_rad: float,
     return replace(cmd, finger_setpoint_rad=sp, preshape_rad=pre)  # type: ignore[type-var]
 
 
+#: hand backends that report no tactile pressures (the USB hands' servo bus): the hand's
+#: environment-port passivity layer would see no contact and charge nothing there
+BACKENDS_WITHOUT_TACTILE = frozenset({"dynamixel"})
+
+
+def hand_control_params(cfg: TeleopConfig) -> tuple[ControlParams, str]:
+    """The hand side's controller parameters, and a note when the backend forces the
+    servo-spring layer (``hand_port = "servo"``: no tactile bus to measure the object port)."""
+    p = control_params(cfg.controller)
+    if p.hand_port == "object" and cfg.hand.backend in BACKENDS_WITHOUT_TACTILE:
+        return replace(p, hand_port="servo"), (
+            f"hand.backend={cfg.hand.backend} has no tactile sensors: the hand's passivity "
+            "layer pays the servo spring's energy (controller.ports.hand_port=servo)")
+    return p, ""
+
+
 class HandService:
     """The hand shell around ``suite.step_hand``."""
 
@@ -61,7 +77,7 @@ class HandService:
         self.bus = bus
         self.backend = backend
         self.suite = suite if suite is not None else get_suite(cfg.controller.kind)
-        self.params = control_params(cfg.controller)
+        self.params, note = hand_control_params(cfg)
         self.state: Any = self.suite.init_hand(self.params)
         self.rate_hz = cfg.hand.state_rate_hz
         self.dt_s = 1.0 / self.rate_hz
@@ -76,6 +92,7 @@ class HandService:
         self.wd_params = hand_command_watchdog(cfg, watchdogs)
         self.wd = WatchdogState()
         self.events: list[str] = []
+        self._note = note  # said once, with the first tick's events
         self.ledger: EnergyLedger | None = None  # accounts after the last tick
         self.last_reading: HandReading | None = None
         self.t0_s: float | None = None
@@ -133,6 +150,9 @@ class HandService:
     def tick(self, t_s: float) -> HandSample:
         """One period at ``t_s``."""
         self.events.clear()
+        if self._note:
+            self.events.append(self._note)
+            self._note = ""
         got = self._receive()
         if got:  # echo for the controller's round-trip measurement
             self.command_rx_t_s = t_s

@@ -58,6 +58,8 @@ class ControllerSample:
     master_dropped: float
     hand_dropped: float
     watchdog: float  # 1 while the hand-state watchdog is tripped
+    force_gain: float = 1.0  # delay-aware force-feedback gain in use
+    round_trip_s: float = float("nan")  # measured round trip the gain is scheduled on
 
 
 @dataclass(frozen=True, slots=True)

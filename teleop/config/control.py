@@ -63,9 +63,60 @@ class PortModelConfig:
                                          "slew rate at the joint: MX-28 55 rpm / 1.42), so the "
                                          "modelled servo spring matches the servo's own ramp",
                                          unit="rad/s", lo=1e-3, hi=1e6)
+    hand_port: str = param("object", "two-layer hand: what its tank pays for. 'object': the "
+                           "work the finger pads do on the object (tactile force x pad motion, "
+                           "on the safe side), the servo's potential and tendon stretch held "
+                           "in reserve; 'servo': the servo spring's energy at every set-point "
+                           "move (the older, stricter layer)", choices=("object", "servo"))
+    tendon_stiffness_nm_per_rad: float = param(5.0, "tendon stiffness seen at the joint-side "
+                                               "motor angle (lower bound: 20 kN/m x (1.42 x "
+                                               "12.2 mm)^2 = 6.0); bounds the energy a "
+                                               "stretched tendon can push into the object",
+                                               unit="N m/rad", lo=1e-3, hi=1e4)
+    finger_kinetic_j: float = param(0.015, "kinetic energy of one finger with its rotor at the "
+                                    "servo's top speed (upper bound); with the energy the "
+                                    "fingers hold back it caps what one hand sample can "
+                                    "deliver to the object", unit="J", lo=0.0, hi=100.0)
     free_motion_refund: bool = param(True, "two-layer hand: the servo's work on a finger whose "
                                      "tactile cells report no contact (before and after the "
                                      "sample) stays in the hand and goes back to the tank")
+
+
+@dataclass(frozen=True, slots=True)
+class TactileConfig:
+    """The hand's tactile cells as the passivity layer reads them (hand_port = 'object'):
+    a force F at x along a link reads gain F (exp(-d^2/2 sigma^2) + tail exp(-|d|/tail_m))
+    on the cell d away (TakkTile calibration; see teleop/control/object_port.py)."""
+
+    pressure_per_n: float = param(100.0, "cell reading per N of normal force at the cell",
+                                  lo=1e-3, hi=1e6)
+    proximal_sensor_x_m: tuple[float, ...] = param(
+        (0.0189, 0.0268, 0.0347, 0.0426, 0.0506), "proximal cells: distance from the base axle",
+        unit="m", size=5)
+    distal_sensor_x_m: tuple[float, ...] = param(
+        (0.0114, 0.0193, 0.0272, 0.0375), "distal cells: distance from the flexure's end",
+        unit="m", size=4)
+    kernel_sigma_m: float = param(0.004, "width of a cell's Gaussian response", unit="m",
+                                  lo=1e-5, hi=0.1)
+    kernel_tail: float = param(0.08, "weight of the response's exponential tail", lo=0.0, hi=1.0)
+    kernel_tail_m: float = param(0.010, "length of the response's exponential tail", unit="m",
+                                 lo=1e-5, hi=1.0)
+    proximal_length_m: float = param(0.076, "base axle to the distal link's origin", unit="m",
+                                     lo=1e-3, hi=1.0)
+    proximal_pad_m: tuple[float, ...] = param((0.010, 0.060), "where the proximal pad starts "
+                                              "and ends (from the base axle)", unit="m", size=2)
+    distal_pad_m: tuple[float, ...] = param((0.0, 0.045), "where the distal pad starts and ends "
+                                            "(from the flexure's end)", unit="m", size=2)
+    noise_floor: float = param(6.0, "readings at or below this on every cell of a link: no "
+                               "contact", lo=0.0, hi=1e6)
+    force_margin: float = param(1.15, "bound m on the force sensor's gain error: the estimated "
+                                "net work on the object is charged x m while the object has "
+                                "received more than it gave back, / m otherwise",
+                                lo=1.0, hi=100.0)
+    angle_deadband_rad: float = param(0.0, "half-width of an optional play filter on the link "
+                                      "angles; what it can hide is charged and held back (off: "
+                                      "measured, those charges cost more than the encoder noise "
+                                      "it removes)", unit="rad", lo=0.0, hi=0.5)
 
 
 @dataclass(frozen=True, slots=True)
@@ -133,6 +184,8 @@ class ControllerConfig:
     rate_hz: float = param(1000.0, "controller loop rate", unit="Hz", lo=1.0, hi=10000.0)
     tank: TankConfig = section(TankConfig, "energy tanks of the passivity layer")
     ports: PortModelConfig = section(PortModelConfig, "port models the passivity layers rely on")
+    tactile: TactileConfig = section(TactileConfig, "tactile cells as the hand's passivity layer "
+                                     "reads them")
     transparency: TransparencyConfig = section(TransparencyConfig, "transparency layer")
     delay_adapt: DelayAdaptConfig = section(DelayAdaptConfig, "delay-aware force-feedback gain "
                                             "(two-layer's transparency layer)")

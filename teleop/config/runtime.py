@@ -23,6 +23,11 @@ class SafetyConfig:
                                 lo=0.0, hi=10.0)
     energy_jump_max_j: float = param(10.0, "largest accepted increase of a peer's cumulative "
                                      "energy total in one message", unit="J", lo=0.0, hi=1e6)
+    seq_jump_max: int = param(10_000, "largest accepted advance of a peer's sequence number over "
+                              "the last accepted one; a message further ahead is dropped as "
+                              "seq_jump and does not move the sequence filter (a restarted "
+                              "peer is accepted from its first seq through its new epoch)",
+                              unit="messages", lo=1, hi=10**12)
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,11 +11,16 @@ MasterState echoes the ``t_s`` of the latest ForceCommand the master had receive
 HandState that of the latest HandCommand, with ``echo_held_s``, how long the peer had held
 that command when it sent the state (a duration on the peer's clock).  When a new message
 arrives at controller time ``t_a``, ``a = t_a - echo_t_s - held`` is the pure transport
-round trip of that leg (controller -> peer -> controller); the peer's hold ``held`` and,
-until the next message arrives, the controller's own hold ``t - t_a`` add to the loop's
-delay (the hand's state arrives every 25 ms).  At controller time ``t``::
+round trip of that leg (controller -> peer -> controller); the peer's hold ``held`` and the
+controller's own hold of the leg's latest message add to the loop's delay (the hand's state
+arrives every 25 ms).  The controller's hold counts as ``h``, the interval between arrivals
+smoothed over ``INTERVAL_TAU_S`` (before a second message: the time since the first), not as
+the sawtooth ``t - t_a``: with message loss the sawtooth's peaks (two, three lost states in
+a row) made the estimate jump, the gain dropped at once and came back at its rise rate, and
+that gain ripple alone held a ~1 Hz finger cycle at zero delay with 20 % loss (the sweep,
+before this).  At controller time ``t``::
 
-    T_meas = sum over legs (master, hand) of  a + min(held, c) + min(t - t_a, c)
+    T_meas = sum over legs (master, hand) of  a + min(held, c) + min(h, c)
 
 A hold beyond ``c = stale_cap_s`` (~ the state watchdog's timeout) is an outage, not a
 delay: no new information closes the loop, and the watchdogs ramp the force down; counting
@@ -30,8 +35,9 @@ largest factor on the force gain for which ``kappa L e^{-jwT}`` is stable:
 ``kappa_c(T) = inf {kappa : T_max(kappa L) <= T}``, falling from large values at ``T = 0``
 to ``kappa_0 = 1 / max_w |L(jw)|`` as ``T -> inf`` (below ``kappa_0``, ``|kappa L| < 1`` at
 every frequency: stable for any delay, passivity.md).  The target keeps the gain margin
-``g``: ``kappa* = min(1, kappa_c(T) / g)``; the gain drops to ``kappa*`` at once and rises
-towards it at most ``gain_rise_per_s``.  The displayed force asked of the passivity layer is
+``g``: ``kappa* = min(1, kappa_c(T) / g)``; the gain drops to ``kappa*`` at once (a drop of
+at most ``DROP_DEADBAND`` of the gain is ignored) and rises towards it at most
+``gain_rise_per_s``.  The displayed force asked of the passivity layer is
 ``kappa`` times the transparency layer's force (applied before the display filter).  At
 small delays ``kappa_c / g >= 1``, so the zero-delay behaviour is unchanged.
 """
@@ -71,13 +77,25 @@ class DelayAdaptParams:
     stale_cap_s: float
 
 
+#: a target at most this fraction below the gain in use leaves the gain where it is (the
+#: gain margin g = 2 keeps 1.8 of it); larger drops happen at once.  Without it every small
+#: rise of the estimate stepped the force down and the rise rate brought it back: a ripple
+#: the operator feels and the classifier counts
+DROP_DEADBAND = 0.1
+
+#: time constant of a leg's smoothed inter-arrival interval (s)
+INTERVAL_TAU_S = 2.0
+
+
 @dataclass(frozen=True, slots=True)
 class LegState:
-    """One leg's latest message (its ``t_s``), echo age at arrival and arrival time."""
+    """One leg's latest message (its ``t_s``), echo age at arrival, arrival time, and the
+    smoothed interval between arrivals (nan until the second message)."""
 
     key_t_s: float = math.nan
     age_s: float = math.inf
     arrival_s: float = math.nan
+    interval_s: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,16 +165,23 @@ def target_gain(p: DelayAdaptParams, round_trip_s: float) -> float:
     return min(1.0, critical_gain(p, round_trip_s) / p.gain_margin)
 
 
+#: an echo this far "from the future" is tick jitter, not an implausible echo: the live
+#: services stamp messages with their nominal tick times while the peers measure their holds
+#: on real time, so a late controller tick sees transports a few ms below zero
+ECHO_JITTER_S = 0.05
+
+
 def echo_age_s(msg: MasterState | HandState | None, t_s: float, stale_cap_s: float) -> float:
     """Round trip of the echoed command at ``t_s``: ``t - echo_t_s`` with the peer's hold
     capped at ``stale_cap_s`` (inf when nothing is echoed yet, or when the echo is
-    implausible: from the future, e.g. a timestamp of a previous controller process)."""
+    implausible: more than ``ECHO_JITTER_S`` from the future, e.g. a timestamp of a previous
+    controller process; a transport just below zero counts as zero)."""
     if msg is None or not math.isfinite(msg.echo_t_s) or msg.echo_t_s < 0.0:
         return math.inf
     held = msg.echo_held_s if math.isfinite(msg.echo_held_s) else 0.0
     held = max(held, 0.0)
     transport = t_s - msg.echo_t_s - held
-    if transport < -1e-3:
+    if transport < -ECHO_JITTER_S:
         return math.inf
     return max(transport, 0.0) + min(held, stale_cap_s)
 
@@ -164,13 +189,21 @@ def echo_age_s(msg: MasterState | HandState | None, t_s: float, stale_cap_s: flo
 def step_leg(leg: LegState, msg: MasterState | HandState | None, t_s: float,
              stale_cap_s: float) -> tuple[LegState, float]:
     """Register a new message (a new ``t_s``); return the leg's round trip ``a + min(held, c)
-    + min(t - t_a, c)`` (inf before the first echo)."""
+    + min(h, c)`` (inf before the first echo), ``h`` the controller's own hold: the smoothed
+    interval between arrivals (the time since the last arrival until a second one came)."""
     if msg is not None and msg.header.t_s != leg.key_t_s:
+        interval = leg.interval_s
+        if math.isfinite(leg.arrival_s):
+            gap = min(max(t_s - leg.arrival_s, 0.0), stale_cap_s)
+            k = min(1.0, gap / INTERVAL_TAU_S)
+            interval = gap if not math.isfinite(interval) else interval + k * (gap - interval)
         leg = LegState(key_t_s=msg.header.t_s, age_s=echo_age_s(msg, t_s, stale_cap_s),
-                       arrival_s=t_s)
+                       arrival_s=t_s, interval_s=interval)
     if not math.isfinite(leg.age_s):
         return leg, math.inf
-    return leg, leg.age_s + min(max(t_s - leg.arrival_s, 0.0), stale_cap_s)
+    hold = (leg.interval_s if math.isfinite(leg.interval_s)
+            else max(t_s - leg.arrival_s, 0.0))
+    return leg, leg.age_s + min(hold, stale_cap_s)
 
 
 def step_delay_adapt(s: DelayAdaptState, p: DelayAdaptParams | None, master: MasterState | None,
@@ -189,6 +222,8 @@ def step_delay_adapt(s: DelayAdaptState, p: DelayAdaptParams | None, master: Mas
     rt = max(cur, prev_b)
     want = target_gain(p, rt)
     prev = s.gain if math.isfinite(s.gain) else target_gain(p, math.inf)
+    if prev * (1.0 - DROP_DEADBAND) <= want < prev:
+        want = prev  # a small drop is ignored: it stays inside the gain margin
     gain = min(want, prev + p.gain_rise_per_s * dt)
     return DelayAdaptState(round_trip_s=rt, gain=max(gain, 0.0), bucket_max_s=cur,
                            prev_bucket_max_s=prev_b, bucket_age_s=age, master_leg=m_leg,

@@ -32,6 +32,7 @@ from typing import Any
 from teleop.config.control import ControllerConfig
 from teleop.control.delay_adapt import DelayAdaptParams, delay_adapt_params
 from teleop.control.energy_channel import EnergyLedger
+from teleop.control.object_port import TactileModel
 from teleop.messages import ForceCommand, HandCommand, Header, MasterState
 
 
@@ -74,6 +75,11 @@ class ControlParams:
     delay_adapt: DelayAdaptParams | None = None
     # two-layer hand: servo work on a finger touching nothing goes back to the tank
     free_motion_refund: bool = True
+    # two-layer hand: "object" (pay the work on the object) or "servo" (pay the servo spring)
+    hand_port: str = "object"
+    tendon_stiffness_nm_per_rad: float = 5.0
+    finger_kinetic_j: float = 0.015
+    tactile: TactileModel = TactileModel()
 
 
 def control_params(cfg: ControllerConfig) -> ControlParams:
@@ -95,7 +101,11 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
         preshape_rad=tr.preshape_rad, force_per_pressure_n=tr.force_per_pressure_n,
         force_combine=tr.force_combine, force_filter_hz=tr.force_filter_hz,
         delay_adapt=delay_adapt_params(cfg) if cfg.kind == "two-layer" else None,
-        free_motion_refund=pm.free_motion_refund)
+        free_motion_refund=pm.free_motion_refund, hand_port=pm.hand_port,
+        tendon_stiffness_nm_per_rad=pm.tendon_stiffness_nm_per_rad,
+        finger_kinetic_j=pm.finger_kinetic_j,
+        tactile=TactileModel(**{f: getattr(cfg.tactile, f)
+                                for f in TactileModel.__dataclass_fields__}))
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,6 +142,8 @@ class ControllerOutput:
     ledger: EnergyLedger  # store_j is ledger.tank_j; port_in/out stay 0 (no physical port)
     max_pressure: tuple[float, float, float]  # per finger (raw units), disabled fingers 0
     force_desired_n: float  # transparency layer's force before the filter
+    force_gain: float = 1.0  # delay-aware force-feedback gain in use (two-layer; else 1)
+    round_trip_s: float = float("nan")  # round trip that gain is scheduled on (nan: none)
 
 
 @dataclass(frozen=True, slots=True)

@@ -7,8 +7,12 @@ as a monotone running total, then the desired force is limited (Franken's limite
 Controller: credits the increases of both incoming totals to its store, forwards
 ``gamma * store`` split ``s : 1 - s`` to hand and master as running totals, and runs the
 transparency layer with the delay-aware force gain of :mod:`teleop.control.delay_adapt`
-(round trip measured from the echoed timestamps; full gain at small delays).  Hand side:
-passive set-position modulation (:mod:`teleop.control.passivity_layer`) against its own tank.
+(round trip measured from the echoed timestamps; full gain at small delays).  Hand side
+(``hand_port = "object"``, the default): its tank pays for the work the pads do on the object
+(:mod:`teleop.control.object_port`) and the set-point may only go where what the finger could
+still push into the object fits in the tank (:func:`~teleop.control.passivity_layer.
+reserve_project`); ``hand_port = "servo"``: passive set-position modulation against the servo
+spring's energy (:mod:`teleop.control.passivity_layer`).
 
 See :mod:`teleop.control.energy_tank` and ``docs/controllers.md`` for the equations.
 """
@@ -30,9 +34,13 @@ from teleop.control.energy_tank import (
     tlc_damping,
 )
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
+from teleop.control.object_port import PadTrack, margin_charge_j, margin_net_j, track_hand
 from teleop.control.passivity_layer import (
     dissipation_lower_bound_j,
+    hand_reservation_j,
     pspm_project,
+    reservation_j,
+    reserve_project,
     servo_potential_j,
     spring_energy_j,
 )
@@ -180,7 +188,8 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
                               sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt)
     return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=led,
-                                max_pressure=mp, force_desired_n=raw)
+                                max_pressure=mp, force_desired_n=raw, force_gain=adapt.gain,
+                                round_trip_s=adapt.round_trip_s)
 
 
 # ------------------------------------------------------------------------------- hand side
@@ -193,6 +202,9 @@ class HandPortState:
     setpoint_prev: Triple | None = None
     rx: TotalReceiver = field(default_factory=TotalReceiver)
     contact_prev: tuple[bool, bool, bool] = (True, True, True)
+    pads: tuple[PadTrack, ...] | None = None
+    object_net_j: float = 0.0  # estimated net work on the object so far (before the margin)
+    held_j: float = 0.0  # what the fingers could push into the object after the last sample
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -257,10 +269,63 @@ def free_motion_refund_j(s: HandPortState, p: ControlParams, x: Triple, y_prev: 
                for i in range(3) if free[i])
 
 
+def hand_hold_j(p: ControlParams) -> float:
+    """What the hand's tank keeps before it sends energy on: the reservation that lets every
+    enabled finger squeeze at the servo's full torque (``e = tau_max / K``)."""
+    k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm
+    n = sum(1 for on in p.finger_enable[:3] if on)
+    return n * reservation_j(tmax / k, k, tmax, p.tendon_stiffness_nm_per_rad)
+
+
+def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
+                     command: HandCommand | None,
+                     dt_s: float) -> tuple[HandPortState, HandOutput]:
+    """One hand-side sample, environment-port accounting: the tank pays the (safe-side) work
+    the pads did on the object since the last sample and is credited what the object gave
+    back; the set-point may only go where the energy it could still push into the object
+    (servo potential + tendon stretch, :func:`reservation_j`) fits in the tank."""
+    led = s.ledger
+    x = measure_hand(s, fingers)
+    y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
+    pads, into_j, back_j, pad_hold = track_hand(p.tactile, s.pads, fingers[:3])
+    net = s.object_net_j + into_j - back_j
+    paid = margin_charge_j(p.tactile, s.object_net_j)
+    charge = margin_charge_j(p.tactile, net) - paid
+    # one sample cannot deliver more than the fingers held at its start (servo potential,
+    # tendon, pad term) plus their kinetic energy: a slip off the object, where the sampled
+    # estimate sees a large force over a long move, is charged no more than that
+    cap = s.held_j + p.finger_kinetic_j * sum(1 for _ in fingers[:3])
+    if charge > cap:
+        charge = cap
+        net = margin_net_j(p.tactile, paid + cap)
+    out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
+    rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
+    tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)
+    k, tmax, kt = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm, \
+        p.tendon_stiffness_nm_per_rad
+    want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s)
+    y, limited = reserve_project(want, x, tank - p.min_j - pad_hold, k, tmax, kt)
+    held = hand_reservation_j(y, x, k, tmax, kt) + pad_hold
+    send = quantum_j(tank - max(hand_hold_j(p), held), p.reserve_j, p.transfer_fraction)
+    tank -= send
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=tank,
+                       port_in_j=led.port_in_j + in_j, port_out_j=led.port_out_j + out_j,
+                       sent_j=led.sent_j + send, received_j=led.received_j + inc,
+                       dissipated_j=led.dissipated_j + diss)
+    pre = command.preshape_rad if command is not None else p.preshape_rad
+    out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
+                     setpoint_desired_rad=want, limited=limited, spring_energy_j=held)
+    return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx,
+                         contact_prev=finger_contacts(fingers), pads=pads,
+                         object_net_j=net, held_j=held), out
+
+
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
     """One hand-side sample: dissipation credit, free-motion refund, quanta, set-position
-    modulation."""
+    modulation (``hand_port = "servo"``), or :func:`step_hand_object`."""
+    if p.hand_port == "object":
+        return step_hand_object(s, p, fingers, command, dt_s)
     led = s.ledger
     x, y_prev, d_all = sample_hand_port(s, p, fingers, dt_s)
     contact = finger_contacts(fingers)

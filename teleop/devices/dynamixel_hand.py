@@ -28,6 +28,15 @@ ReFlex conventions (``hand.dynamixel`` config; reference: reflex-hardware.md):
   cycle whose transactions still fail counts as a failure, and after ``max_failures``
   consecutive failures the hand latches its safe state (hold) and says so in every reading's
   ``faults``.  A vanished port raises :class:`~teleop.errors.DeviceNotConnected`.
+* Servo error bits: while any servo (fingers or preshape) reports a hardware error (P1.0:
+  overload, overheat, input voltage; P2.0: any bit of the hardware error status) the hand
+  holds its safe state: set-points are ignored and every goal is the present position, and
+  every reading's ``faults`` says which servo and why (``servo_fault_trips`` counts the
+  episodes).  When every bit has cleared the hand resumes cleanly: goals at the present
+  position first, then torque on again (the servo's alarm shutdown may have switched it off),
+  then the next command is followed.  A P2.0 servo latches its hardware error status until
+  it is rebooted; this backend does not reboot servos, so on real P2.0 hardware it stays
+  safe until the servo is power-cycled.
 """
 
 from __future__ import annotations
@@ -95,6 +104,9 @@ class DynamixelHand:
         self.force_units = (0.0, 0.0, 0.0)
         self.consecutive_failures = 0
         self.safe_reason = ""  # non-empty while latched safe after bus failures
+        self.servo_fault_reason = ""  # non-empty while held safe on servo error bits
+        self.servo_fault_trips = 0  # times the servo error bits sent the hand safe
+        self.servo_fault_since_s: float | None = None  # clock() when the present episode began
         self.requested_safe = False
         self.started = False
         self._proximal = [0.0] * 3
@@ -160,8 +172,8 @@ class DynamixelHand:
 
     def apply(self, command: HandCommand) -> None:
         """New targets (after the pacing delay when ``command_pacing`` is on)."""
-        if self.safe_reason:
-            return  # latched safe after bus failures: set-points are ignored
+        if self.safe_reason or self.servo_fault_reason:
+            return  # latched safe (bus failures) or held safe (servo error bits): ignored
         if self.cfg.command_pacing:
             now = self.clock()
             self._pending.append((now + self.cfg.command_delay_s, command))
@@ -173,9 +185,12 @@ class DynamixelHand:
         """Read every servo, run overload protection and report (faults included)."""
         self._release(self.clock())
         if self._guard("state read", self._read_state):
+            self._check_servo_errors()
             self._protect()
         if self.safe_reason:
             self._faults.append(self.safe_reason)
+        elif self.servo_fault_reason:
+            self._faults.append(self.servo_fault_reason)
         faults, self._faults = tuple(dict.fromkeys(self._faults)), []
         return HandReading(t_s, self._finger_states(), self.joint[3], faults)
 
@@ -209,7 +224,7 @@ class DynamixelHand:
             self._execute(self._pending.popleft()[1])
 
     def _execute(self, cmd: HandCommand) -> None:
-        if self.safe_reason:
+        if self.safe_reason or self.servo_fault_reason:
             return
         if cmd.mode == HandMode.SAFE:
             self.safe("hold")
@@ -287,6 +302,43 @@ class DynamixelHand:
                                    self.load[k], (0.0,) * N_PRESSURE,
                                    (self._contact[k],) * N_PRESSURE))
         return out[0], out[1], out[2]
+
+    def _check_servo_errors(self) -> None:
+        """Hold the safe state while any servo reports hardware error bits; resume after."""
+        bad = [f"servo {s.dxl_id} {', '.join(s.hardware_faults)}" for s in self._status
+               if s.hardware_faults]
+        if bad:
+            reason = (f"dynamixel: {'; '.join(bad)} error; hand held in its safe state (hold) "
+                      "until the servo error bits clear")
+            if not self.servo_fault_reason:
+                self.servo_fault_trips += 1
+                self.servo_fault_since_s = self.clock()
+                log.error("%s", reason)
+                self._hold_present()
+            self.servo_fault_reason = reason
+        elif self.servo_fault_reason:
+            self._resume_after_servo_error()
+
+    def _hold_present(self) -> bool:
+        """Safe state (hold): drop pending commands, goals at the present position."""
+        self.mode = HandMode.SAFE
+        self._pending.clear()
+        self.target = [self.clamp(k, self.joint[k]) for k in range(4)]
+        return self._guard("safe-state goal write", self._write_goals)
+
+    def _resume_after_servo_error(self) -> None:
+        """The error bits cleared: goals at the present position, then torque on again."""
+        if not self._hold_present():
+            return  # retried on the next read: still held safe
+        for dxl_id in self.cfg.ids:
+            if not self._guard(f"torque on of servo {dxl_id}",
+                               lambda i=dxl_id: self.bus.write(i, "torque_enable", 1)):
+                return  # retried on the next read: still held safe
+        held = self.clock() - (self.servo_fault_since_s or self.clock())
+        log.warning("dynamixel: servo error bits cleared after %.2f s; torque on, resuming "
+                    "from the present position", held)
+        self.servo_fault_reason = ""
+        self.servo_fault_since_s = None
 
     def _guard(self, what: str, fn: Callable[[], object]) -> bool:
         """Run a bus cycle step; count consecutive failures and latch safe at the limit."""

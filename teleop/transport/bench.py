@@ -10,6 +10,7 @@ Every phase runs a second process (:mod:`teleop.transport.peer`, spawned, not fo
   time on the shared ``CLOCK_MONOTONIC`` (same machine), at 1 kHz.  ``rtt_*``: the same
   round trip (master_state out, force_command back), for comparison with ``raw_rtt_*``.
 * ``delay_error_*``: achieved minus configured one-way delay with ``delay_s = 0.05``.
+* Every ``*_p99_us`` has its ``*_max_us`` beside it: a p99 hides the worst 1 % (a stall).
 * ``messages_per_s``: sustained rate of master_state -> force_command echoes with at most
   32 unanswered (each counted once; every one is encoded, delayed, decoded on both sides).
   Publishing flat out instead only measures zenoh's drops (CongestionControl.DROP) once
@@ -36,6 +37,10 @@ _PING = struct.Struct("<qd")
 
 def _pct(values: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(values), q)) if values else float("nan")
+
+
+def _max(values: list[float]) -> float:
+    return max(values, default=float("nan"))
 
 
 def _wait(cond: object, timeout_s: float, what: str) -> None:
@@ -208,15 +213,18 @@ def bench_transport(duration_s: float = 5.0) -> dict[str, float | str]:
     return {
         "messages_sent": float(n),
         "latency_method": "one-way, receive minus send on the shared CLOCK_MONOTONIC",
-        "p50_us": _pct(fwd, 50), "p99_us": _pct(fwd, 99), "max_us": max(fwd, default=float("nan")),
+        "p50_us": _pct(fwd, 50), "p99_us": _pct(fwd, 99), "max_us": _max(fwd),
         "received_fraction": len(fwd) / n,
         "backward_p50_us": _pct(back, 50), "backward_p99_us": _pct(back, 99),
-        "rtt_p50_us": _pct(rtt, 50), "rtt_p99_us": _pct(rtt, 99),
+        "backward_max_us": _max(back),
+        "rtt_p50_us": _pct(rtt, 50), "rtt_p99_us": _pct(rtt, 99), "rtt_max_us": _max(rtt),
         "raw_rtt_p50_us": _pct(raw, 50), "raw_rtt_p99_us": _pct(raw, 99),
+        "raw_rtt_max_us": _max(raw),
         "raw_one_way_p50_us": _pct(raw, 50) / 2,
         "delay_configured_ms": DELAY_S * 1e3,
         "delay_error_p50_us": _pct(err, 50),
-        "delay_error_p99_us": _pct([abs(e) for e in err], 99),
+        "delay_error_p99_us": _pct([abs(e) for e in err], 99),  # of |error|
+        "delay_error_max_us": _max([abs(e) for e in err]),  # of |error|
         "delay_error_min_us": min(err, default=float("nan")),
         "delay_received_fraction": len(err) / n,
         "messages_per_s": echoed / thr_s,

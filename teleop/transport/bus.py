@@ -5,7 +5,8 @@ receives the signals its role receives (see :mod:`teleop.transport.keys`).  Ever
 message goes, at the receiver, through: arrival -> the link's delay line (delay, jitter,
 loss, duplication, reordering; seeded) -> :class:`SafeDecoder` (bad messages are counted and
 dropped) -> a sequence check (a ``seq`` not above the last accepted one is dropped and
-counted as ``stale_seq``) -> an energy-total check (a cumulative ``energy_total_j`` below the
+counted as ``stale_seq``; one more than ``seq_jump_max`` above it is dropped and counted as
+``seq_jump``) -> an energy-total check (a cumulative ``energy_total_j`` below the
 last accepted one is ``energy_decrease``, one above it by more than ``energy_jump_max_j`` is
 ``energy_jump``; both dropped) -> :class:`Received`, with the achieved delay measured.
 
@@ -28,6 +29,18 @@ one to the next) re-baseline the epoch at the last one, which is accepted credit
 of the jump (the energy sent into the outage is lost, never created).  A forged total cannot
 do that: the sender's next genuine message is accepted and clears the run, and a forged
 ``seq`` far ahead (which would also shut the genuine sender out as stale) never qualifies.
+
+Sequence jumps: a well-formed message whose ``seq`` is more than ``seq_jump_max`` above the
+last accepted one is rejected as ``seq_jump`` (as ``energy_jump``/``energy_decrease`` when its
+total would fail the energy check too) and does not move the filter, so one forged ``seq``
+far ahead cannot make the genuine sender's later messages look stale.  A genuine
+sender whose numbering really ran ahead (an outage longer than ``seq_jump_max`` messages
+with its liveliness token kept) is re-synchronised: a run of at least
+:data:`JUMP_REBASE_COUNT` jump rejections, each above the previous by at most
+``seq_jump_max``, spanning :data:`SEQ_REBASE_MIN_S` of receive time with no message accepted
+in between, moves the filter to the run.  A forger cannot do that while the genuine sender
+is heard: its next accepted message clears the run.  A restarted sender does not need it:
+its new epoch (liveliness) resets the filter, so it is accepted from its first ``seq``.
 """
 
 from __future__ import annotations
@@ -60,6 +73,10 @@ JUMP_REBASE_COUNT = 3
 #: Largest ``seq`` advance over the last accepted message that may re-baseline (an outage of
 #: 100 s at 1 kHz).
 REBASE_MAX_SEQ_GAP = 100_000
+#: Receive time a run of ``seq_jump`` rejections must span before it re-synchronises the
+#: sequence filter (a genuine sender's messages arrive all along it; a burst of forged ones
+#: does not, and a genuine message in between clears the run).
+SEQ_REBASE_MIN_S = 0.25
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,7 +109,7 @@ class BusStats:
     """A frozen snapshot of one bus view's counters."""
 
     role: str
-    rejects: RejectCounts  # decode failures and stale_seq, per reason
+    rejects: RejectCounts  # decode failures, stale_seq, seq_jump, energy checks, per reason
     links: tuple[LinkStats, ...]
 
     def link(self, signal: str) -> LinkStats:
@@ -137,10 +154,15 @@ def link_params(links: LinksConfig, signal: str) -> DelayParams:
 
 
 class Inbox:
-    """Receiver side of one signal: delay line, safe decoding, stale-sequence filter."""
+    """Receiver side of one signal: delay line, safe decoding, sequence and energy checks.
+
+    ``seq_jump_max``: largest accepted advance of ``seq`` over the last accepted message
+    (None: unlimited); only with ``drop_stale``.
+    """
 
     def __init__(self, signal: str, links: LinksConfig, decoder: SafeDecoder,
-                 drop_stale: bool = True, energy_jump_max_j: float = math.inf) -> None:
+                 drop_stale: bool = True, energy_jump_max_j: float = math.inf,
+                 seq_jump_max: int | None = None) -> None:
         self.signal = signal
         self.spec = signal_spec(signal)
         self.params = link_params(links, signal)
@@ -156,6 +178,9 @@ class Inbox:
         self.epochs = 0  # sender restarts seen (reset_seq calls)
         self.rebases = 0  # epochs re-baselined after an outage
         self._jumps: list[tuple[int, float]] = []  # consecutive jump rejections (seq, total)
+        self.seq_jump_max = seq_jump_max
+        self.seq_rebases = 0  # sequence filter re-synchronised after a long outage
+        self._seq_jumps: list[tuple[int, float]] = []  # consecutive seq_jump rejections (seq, t)
 
     def arrive(self, payload: bytes, t_s: float) -> None:
         """A message entered the link at ``t_s`` (its delay counts from there)."""
@@ -192,16 +217,56 @@ class Inbox:
             if msg is None:
                 continue
             seq = msg.header.seq
-            if self._drop_stale and self._last_seq is not None and seq <= self._last_seq:
-                self._decoder.reject("stale_seq", f"{self.signal} seq {seq} <= {self._last_seq}")
-                continue
+            if self._drop_stale and self._last_seq is not None:
+                if seq <= self._last_seq:
+                    self._decoder.reject("stale_seq",
+                                         f"{self.signal} seq {seq} <= {self._last_seq}")
+                    continue
+                if not self._check_seq_jump(msg, d.delivered_t_s):
+                    continue
             msg = self._check_energy(msg)
             if msg is None:
                 continue
             self._last_seq = seq
+            self._seq_jumps.clear()
             out.append(Received(self.signal, msg, d.sent_t_s, d.delivered_t_s, d.delay_s))
         self._delivered += len(out)
         return out
+
+    def _check_seq_jump(self, msg: Message, t_s: float) -> bool:
+        """False (rejected) if the message's ``seq`` runs too far ahead of the last accepted.
+
+        A run of such rejections that looks like a live sender (see the module doc)
+        re-synchronises the filter instead: True, with the last accepted ``seq`` moved to
+        the run's previous message.  A rejected message whose energy total would fail the
+        energy check as well is counted under that reason (``energy_jump`` or
+        ``energy_decrease``: a forged total), otherwise as ``seq_jump``; either way nothing
+        but this run moves.
+        """
+        seq = msg.header.seq
+        cap = self.seq_jump_max
+        last = self._last_seq
+        if cap is None or last is None or seq - last <= cap:
+            return True
+        run = self._seq_jumps
+        if run and not run[-1][0] < seq <= run[-1][0] + cap:
+            run.clear()
+        run.append((seq, t_s))
+        if len(run) >= JUMP_REBASE_COUNT and t_s - run[0][1] >= SEQ_REBASE_MIN_S:
+            self._last_seq = run[-2][0]
+            run.clear()
+            self.seq_rebases += 1
+            return True
+        total, last_j = msg.header.energy_total_j, self._epoch_energy_j
+        if last_j is not None and total < last_j:
+            self._decoder.reject("energy_decrease",
+                                 f"{self.signal} total {total:.6g} J < {last_j:.6g} J")
+        elif last_j is not None and total - last_j > self.energy_jump_max_j:
+            self._decoder.reject("energy_jump", f"{self.signal} total jumps by "
+                                 f"{total - last_j:.6g} J > {self.energy_jump_max_j:.6g} J")
+        else:
+            self._decoder.reject("seq_jump", f"{self.signal} seq {seq} > {last} + {cap}")
+        return False
 
     def _check_energy(self, msg: Message) -> Message | None:
         """The message with its total continued across sender epochs, or None (rejected)."""
@@ -243,6 +308,7 @@ class Inbox:
         self._last_seq = None
         self._epoch_energy_j = None
         self._jumps.clear()
+        self._seq_jumps.clear()
         self.epochs += 1
 
     def drop_in_flight(self) -> None:
@@ -272,11 +338,11 @@ def check_publish(role: str, signal: str, msg: Message) -> None:
 
 
 def make_inboxes(role: str, links: LinksConfig, decoder: SafeDecoder,
-                 drop_stale: bool = True,
-                 energy_jump_max_j: float = math.inf) -> dict[str, Inbox]:
+                 drop_stale: bool = True, energy_jump_max_j: float = math.inf,
+                 seq_jump_max: int | None = None) -> dict[str, Inbox]:
     """One :class:`Inbox` per signal ``role`` receives."""
     check_role(role)
-    return {name: Inbox(name, links, decoder, drop_stale, energy_jump_max_j)
+    return {name: Inbox(name, links, decoder, drop_stale, energy_jump_max_j, seq_jump_max)
             for name, spec in SIGNALS.items() if spec.receiver == role}
 
 

@@ -44,21 +44,25 @@ class InProcessHub:
     """The shared medium of an in-process run: one clock, the links, the live views."""
 
     def __init__(self, links: LinksConfig, clock: Clock, session: str = "default",
-                 drop_stale: bool = True, energy_jump_max_j: float = math.inf) -> None:
+                 drop_stale: bool = True, energy_jump_max_j: float = math.inf,
+                 seq_jump_max: int | None = None) -> None:
         self.links = links
         self.clock = clock
         self.session = check_session(session)
         self.drop_stale = drop_stale
         self.energy_jump_max_j = energy_jump_max_j
+        self.seq_jump_max = seq_jump_max
         self._views: dict[str, InProcessBus] = {}
         self._cut: set[str] = set()  # links cut by fault injection
         self.cut_dropped = 0  # messages lost on cut links
 
     @classmethod
     def from_config(cls, cfg: TeleopConfig, clock: Clock) -> InProcessHub:
-        """A hub with ``cfg.links``, ``cfg.session.name`` and ``safety.energy_jump_max_j``."""
+        """A hub with ``cfg.links``, ``cfg.session.name``, ``safety.energy_jump_max_j`` and
+        ``safety.seq_jump_max``."""
         return cls(cfg.links, clock, cfg.session.name,
-                   energy_jump_max_j=cfg.safety.energy_jump_max_j)
+                   energy_jump_max_j=cfg.safety.energy_jump_max_j,
+                   seq_jump_max=cfg.safety.seq_jump_max)
 
     def bus(self, role: str) -> InProcessBus:
         """The view of service ``role`` (one live view per role).
@@ -126,7 +130,8 @@ class InProcessBus:
         self._hub = hub
         self._decoder = SafeDecoder(f"inproc:{role}")
         self._inboxes: dict[str, Inbox] = make_inboxes(role, hub.links, self._decoder,
-                                                       hub.drop_stale, hub.energy_jump_max_j)
+                                                       hub.drop_stale, hub.energy_jump_max_j,
+                                                       hub.seq_jump_max)
         self._closed = False
 
     def publish(self, signal: str, msg: Message) -> None:

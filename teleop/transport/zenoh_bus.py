@@ -13,7 +13,8 @@
 * Liveliness: a token ``teleop/<session>/<role>/alive`` per service; a subscriber (with
   history) on the others' tokens answers :meth:`ZenohBus.alive`.  A killed peer's token
   disappears as soon as its TCP link drops.  When a peer (re)appears, the sequence filter
-  of its signals is reset so a restarted sender is accepted.
+  of its signals is reset so a restarted sender is accepted (from its first ``seq``; a
+  ``seq`` too far ahead of the last accepted one is otherwise dropped as ``seq_jump``).
 * ``close()`` undeclares subscribers, publishers and the token and closes the session; it
   must be called (zenoh sessions keep the process alive otherwise).
 * GIL: zenoh delivers samples through a Python callback, which needs the GIL; a service
@@ -105,7 +106,8 @@ class ZenohBus:
                  connect: Sequence[str] | None = None, shared_clock: bool = True,
                  drop_stale: bool = True, gil_switch_interval_s: float | None = 1e-4,
                  extra_config: Mapping[str, str] | None = None,
-                 energy_jump_max_j: float = math.inf) -> None:
+                 energy_jump_max_j: float = math.inf,
+                 seq_jump_max: int | None = None) -> None:
         self.role = check_role(role)
         if gil_switch_interval_s is not None and sys.getswitchinterval() > gil_switch_interval_s:
             sys.setswitchinterval(gil_switch_interval_s)
@@ -125,7 +127,7 @@ class ZenohBus:
         self._decoder = SafeDecoder(f"zenoh:{role}")
         self._inboxes: dict[str, Inbox] = make_inboxes(role, links or LinksConfig(),
                                                        self._decoder, drop_stale,
-                                                       energy_jump_max_j)
+                                                       energy_jump_max_j, seq_jump_max)
         self._arrivals: dict[str, collections.deque[tuple[bytes, float]]] = {
             s: collections.deque() for s in self._inboxes}
         self._data_event = threading.Event()
@@ -165,6 +167,7 @@ class ZenohBus:
         """A bus for ``role`` from the ``session``, ``zenoh`` and ``links`` sections."""
         kwargs.setdefault("shared_clock", cfg.zenoh.shared_clock)
         kwargs.setdefault("energy_jump_max_j", cfg.safety.energy_jump_max_j)
+        kwargs.setdefault("seq_jump_max", cfg.safety.seq_jump_max)
         if "extra_config" not in kwargs:  # TLS, auth and ACL when security.enabled
             from teleop.security.zenoh_secure import secure_zenoh_config
 

@@ -123,7 +123,7 @@ def _scalar(rec: rr.RecordingStream, path: str, value: float) -> None:
 def log_rejects(rec: rr.RecordingStream, t_s: float, role: str,
                 by_reason: Sequence[tuple[str, int]]) -> None:
     """Cumulative counts of the messages ``role``'s bus rejected, one series per reason
-    (``malformed``, ``out_of_range``, ``stale_seq``, ``energy_jump``, ...)."""
+    (``malformed``, ``out_of_range``, ``stale_seq``, ``seq_jump``, ``energy_jump``, ...)."""
     set_time(rec, t_s)
     for reason, n in by_reason:
         _scalar(rec, f"rejects/{role}/{reason}", float(n))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from services.bench import loop_summary
 from services.runtime import RateLoop
 from teleop.transport.clock import MonotonicClock, VirtualClock
 
@@ -45,6 +46,36 @@ def test_long_stall_skips_deadlines_instead_of_bursting() -> None:
     stats = loop.run(tick, duration_s=0.02)
     assert stats.skipped == 9  # deadlines 2..10 ms dropped, 11 ms ticked late
     assert all(b > a for a, b in zip(times, times[1:], strict=False))
+    # the percentiles re-base after the stall, the max and the stall count do not hide it
+    fig = stats.figures("x")
+    assert fig["x_lateness_p99_us"] <= 1000.0
+    assert fig["x_stalls"] == 1.0
+    assert fig["x_lateness_max_us"] == pytest.approx(9500.0)  # from the 2 ms deadline
+    assert fig["x_stall_lateness_max_us"] == pytest.approx(9500.0)
+    assert fig["x_lateness_max_us"] >= fig["x_lateness_p99_us"] >= fig["x_lateness_p50_us"]
+    assert fig["x_tick_max_us"] >= fig["x_tick_p99_us"]
+
+
+def test_without_stalls_the_max_is_the_largest_tick_lateness() -> None:
+    stats = RateLoop(40.0, clock=VirtualClock()).run(lambda t: None, duration_s=1.0)
+    fig = stats.figures("y")
+    assert fig["y_stalls"] == 0.0 and fig["y_lateness_max_us"] == 0.0
+    assert fig["y_stall_lateness_max_us"] == 0.0
+
+
+def test_loop_bench_summary_puts_max_and_stalls_beside_the_p99() -> None:
+    figures: dict[str, float] = {}
+    for role, (p50, p99, top, stalls) in {"master": (20.0, 300.0, 25_000.0, 2.0),
+                                           "controller": (30.0, 400.0, 900.0, 0.0),
+                                           "hand": (10.0, 50.0, 40_000.0, 1.0)}.items():
+        figures |= {f"{role}_rate_hz": 1000.0, f"{role}_lateness_p50_us": p50,
+                    f"{role}_lateness_p99_us": p99, f"{role}_lateness_max_us": top,
+                    f"{role}_stalls": stalls}
+    s = loop_summary(figures)
+    assert s["lateness_p99_us"] == 400.0  # worst of master and controller (the floor's)
+    assert s["lateness_max_us"] == 40_000.0 and s["stalls"] == 3.0
+    assert s["lateness_max_us"] >= s["lateness_p99_us"]
+    assert s["floor_ok"] == 1.0  # the floor is on the p99; the max and stalls say the rest
 
 
 @pytest.mark.slow

@@ -22,7 +22,7 @@ that only pulls).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -87,9 +87,15 @@ class Scenario:
     ref_period_s: float = 1.0
     random_ref: bool = False
     wall_rad: tuple[float, float, float] = (1.5, 1.5, 1.5)
+    #: a yielding object (a box pushed across a table): while pressed, the wall retreats at
+    #: this speed and the table's friction takes the energy (0: a fixed wall)
+    wall_speed_rad_s: float = 0.0
     contact_stiffness: float = 3.2  # N m / rad
     pressure_per_nm: float = 200.0  # sensor units per N m of contact torque
     servo_damping_factor: float = 1.0  # true B / assumed lower bound B
+    servo_stiffness_factor: float = 1.0  # true K / the port model's K (assumption: <= 1)
+    servo_torque_factor: float = 1.0  # true torque limit / the port model's (assumption: <= 1)
+    sensor_gain_factor: float = 1.0  # true tactile gain / the controller's calibration
 
 
 @dataclass
@@ -201,10 +207,27 @@ def servo_spring_j(e: float, k: float, tau: float) -> float:
     return 0.5 * k * a * a if a <= e_s else tau * (a - 0.5 * e_s)
 
 
+#: the harness's tactile pad: the wall pushes at this point of the proximal link, and the
+#: cells (at the ReFlex positions) read a Gaussian-plus-tail spread of that force
+CONTACT_AT_M = 0.0347
+CELLS_M = (0.0189, 0.0268, 0.0347, 0.0426, 0.0506)
+
+
+def _cell_response(d: float) -> float:
+    return math.exp(-d * d / (2.0 * 0.004 ** 2)) + 0.08 * math.exp(-abs(d) / 0.010)
+
+
+def harness_tactile(p: ControlParams, sc: Scenario) -> ControlParams:
+    """``p`` with its tactile calibration matched to the harness's pad (the peak cell reads
+    ``pressure_per_nm`` per N m of contact torque)."""
+    gain = sc.pressure_per_nm * CONTACT_AT_M / _cell_response(0.0) / sc.sensor_gain_factor
+    return replace(p, tactile=replace(p.tactile, pressure_per_n=gain))
+
+
 def finger_state(x: float, pen: float, sc: Scenario, load: float) -> FingerState:
     torque = sc.contact_stiffness * pen
-    p = sc.pressure_per_nm * torque
-    pressure = (0.1 * p, 0.3 * p, p, 0.2 * p, 0.0, 0.05 * p, 0.0, 0.0, 0.0)
+    p = sc.pressure_per_nm * torque / _cell_response(0.0)
+    pressure = tuple(p * _cell_response(c - CONTACT_AT_M) for c in CELLS_M) + (0.0,) * 4
     return FingerState(proximal_rad=x, distal_rad=0.0, motor_angle_rad=x, load_units=load,
                        pressure=pressure, contact=tuple(v > 1.0 for v in pressure))
 
@@ -212,6 +235,7 @@ def finger_state(x: float, pen: float, sc: Scenario, load: float) -> FingerState
 def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
              travel_m: float = 0.025) -> Trace:
     """Run the closed loop for ``sc.steps`` 1 ms steps and record everything."""
+    p = harness_tactile(p, sc)
     rng = np.random.default_rng(sc.seed)
     links = [Link(np.random.default_rng(sc.seed * 7 + i + 1), sc.delay_steps, sc.jitter_steps,
                   sc.loss, sc.dup) for i in range(4)]
@@ -219,8 +243,9 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
     rng_ref = list(rng.uniform(0.0, 1.0, 64))
     forcing = rng.uniform(-1.0, 1.0, sc.steps // 20 + 2) * sc.op_force_n
     vmax = 0.95 * p.trigger_max_speed_m_s
-    k_s, b_s = p.servo_stiffness_nm_per_rad, p.servo_damping_nm_s_per_rad * sc.servo_damping_factor
-    tau_s = p.servo_torque_max_nm
+    k_s = p.servo_stiffness_nm_per_rad * sc.servo_stiffness_factor
+    b_s = p.servo_damping_nm_s_per_rad * sc.servo_damping_factor
+    tau_s = p.servo_torque_max_nm * sc.servo_torque_factor
     ms, cs, hs = suite.init_master(p), suite.init_controller(p), suite.init_hand(p)
     x = v = 0.0
     xf = [0.0, 0.0, 0.0]
@@ -230,6 +255,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
     last_fc = last_ms = last_hs = last_hc = None
     fc_rx_t = hc_rx_t = 0.0  # when the latest command arrived (echo hold)
     tr = Trace()
+    walls = list(sc.wall_rad)
     hand_out = None
     m_out = None
     for k in range(sc.steps):
@@ -256,7 +282,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         if hc is not None:
             hc_rx_t = t
         if k % sc.hand_every == 0:
-            fingers = tuple(finger_state(xf[i], max(0.0, xf[i] - sc.wall_rad[i]), sc,
+            fingers = tuple(finger_state(xf[i], max(0.0, xf[i] - walls[i]), sc,
                                          k_s * (y[i] - xf[i])) for i in range(3))
             hs, hand_out = suite.step_hand(hs, p, fingers, last_hc, DT * sc.hand_every)
             y = hand_out.setpoint_rad
@@ -264,12 +290,15 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
                                                 energy_total_j=hand_out.energy_total_j),
                                   fingers=fingers, preshape_rad=0.0,  # type: ignore[arg-type]
                                   echo_t_s=_echo(last_hc), echo_held_s=t - hc_rx_t))
-        # physics over the next 1 ms with the force and set-points held
+        # physics over the next 1 ms with the force and set-points held; a pressed yielding
+        # wall first retreats (its spring's energy goes to the table: no work at the port)
         for i in range(3):
-            pen0 = max(0.0, xf[i] - sc.wall_rad[i])
-            xf[i] = servo_substep(xf[i], y[i], sc.wall_rad[i], k_s, b_s, sc.contact_stiffness,
+            if sc.wall_speed_rad_s > 0.0 and xf[i] > walls[i]:
+                walls[i] = min(walls[i] + sc.wall_speed_rad_s * DT, xf[i])
+            pen0 = max(0.0, xf[i] - walls[i])
+            xf[i] = servo_substep(xf[i], y[i], walls[i], k_s, b_s, sc.contact_stiffness,
                                   DT, tau_s)
-            pen1 = max(0.0, xf[i] - sc.wall_rad[i])
+            pen1 = max(0.0, xf[i] - walls[i])
             w_env = 0.5 * sc.contact_stiffness * (pen1 * pen1 - pen0 * pen0)
             env_out += max(w_env, 0.0)
             env_in += max(-w_env, 0.0)

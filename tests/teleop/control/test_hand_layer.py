@@ -1,5 +1,6 @@
-"""The two-layer hand side: one-sided servo potential (the tendon only pulls), closing-only
-damping credit and the free-motion refund."""
+"""The two-layer hand side with ``hand_port = "servo"``: one-sided servo potential (the tendon
+only pulls), closing-only damping credit and the free-motion refund.  The default
+environment-port accounting is tested in ``test_object_port.py``."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from teleop.control.passivity_layer import (
 )
 from teleop.messages import FingerState, HandCommand, HandMode, Header
 
-P = control_params(ControllerConfig())
+P = replace(control_params(ControllerConfig()), hand_port="servo")
 K, TMAX = P.servo_stiffness_nm_per_rad, P.servo_torque_max_nm
 
 

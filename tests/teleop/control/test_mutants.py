@@ -148,6 +148,33 @@ def two_sided_damping_credit(mp: pytest.MonkeyPatch) -> None:
     mp.setattr(two_layer, "dissipation_lower_bound_j", credit)
 
 
+def object_work_sign_flipped(mp: pytest.MonkeyPatch) -> None:
+    """Environment-port hand: work the pads do on the object is credited, work the object
+    gives back charged (the two estimates swapped)."""
+    track = two_layer.track_hand
+
+    def swapped(model: Any, prev: Any, fingers: Any) -> Any:
+        tracks, out_j, in_j, held = track(model, prev, fingers)
+        return tracks, in_j, out_j, held
+    mp.setattr(two_layer, "track_hand", swapped)
+
+
+def object_work_not_charged(mp: pytest.MonkeyPatch) -> None:
+    """Environment-port hand: the tank is never charged for the work on the object."""
+    track = two_layer.track_hand
+
+    def free(model: Any, prev: Any, fingers: Any) -> Any:
+        tracks, _, in_j, held = track(model, prev, fingers)
+        return tracks, 0.0, in_j, held
+    mp.setattr(two_layer, "track_hand", free)
+
+
+def reservation_ignored(mp: pytest.MonkeyPatch) -> None:
+    """Environment-port hand: the set-point goes where it is asked, whatever the servo
+    potential and tendon stretch it builds up (the tank still pays the object work)."""
+    mp.setattr(two_layer, "reserve_project", lambda want, x, budget, k, tmax, kt: (want, False))
+
+
 MUTANTS: dict[str, Mutant] = {
     "port_work_sign_flipped": port_work_sign_flipped,
     "dissipation_over_credited_x50": dissipation_over_credited,
@@ -159,6 +186,9 @@ MUTANTS: dict[str, Mutant] = {
     "epoch_credited_on_restart": epoch_credited_on_restart,
     "refund_in_contact": refund_in_contact,
     "two_sided_damping_credit": two_sided_damping_credit,
+    "object_work_sign_flipped": object_work_sign_flipped,
+    "object_work_not_charged": object_work_not_charged,
+    "reservation_ignored": reservation_ignored,
 }
 
 
@@ -166,7 +196,7 @@ MUTANTS: dict[str, Mutant] = {
 TOL_J = 1e-9
 
 
-def _params(**kw: float) -> ControlParams:
+def _params(**kw: Any) -> ControlParams:
     return replace(control_params(ControllerConfig(kind="two-layer")), **kw)
 
 
@@ -191,19 +221,19 @@ STEADY_RELEASE = ([0.025] * 100 + [0.025 * (1.0 - k / 1000) for k in range(1001)
 ZIGZAG = [0.0125 + (0.0009 if k % 2 else 0.0) for k in range(1500)]
 
 
-def master_passive_steady() -> str:
+def master_passive_steady(hand_port: str = "object") -> str:
     """The device pushes (5 N) while the operator opens the trigger steadily."""
     return _rig_failure(STEADY_RELEASE, 5.0, keep_reserve=False)
 
 
-def master_keeps_reserve_steady() -> str:
+def master_keeps_reserve_steady(hand_port: str = "object") -> str:
     """As above; for steady motion Franken's limiter (which predicts the next sample's
     energy from the last velocity) stops the delivery at ``H_min``, so the operator gets at
     most ``initial - H_min`` + what it put in."""
     return _rig_failure(STEADY_RELEASE, 5.0, keep_reserve=True)
 
 
-def master_passive_zigzag() -> str:
+def master_passive_zigzag(hand_port: str = "object") -> str:
     """The device pushes (8 N) while the trigger reverses every sample: the last velocity
     predicts nothing, only the hard guard keeps the tank from being overdrawn."""
     return _rig_failure(ZIGZAG, 8.0, keep_reserve=False)
@@ -214,10 +244,10 @@ SQUEEZE = Scenario(seed=1, steps=4000, wall_rad=(0.3, 0.3, 0.3), hand_every=25,
                    ref_period_s=6.0, op_stiffness=1000.0)
 
 
-def loop_passive_squeeze() -> str:
+def loop_passive_squeeze(hand_port: str = "object") -> str:
     """Closed-loop harness, 0.1 J tanks: energy delivered to the operator and to the wall <=
     initial tanks + energy taken from them, at every sample (harness physics)."""
-    p = _params(initial_j=0.1, reserve_j=0.02)
+    p = _params(initial_j=0.1, reserve_j=0.02, hand_port=hand_port)
     suite = CONTROLLERS["two-layer"]
     return audit_failure(run_loop(suite, p, SQUEEZE), initial_tank_j(suite, p))
 
@@ -229,11 +259,11 @@ LOCKSTEP_OVERRIDES = ("controller.tank.initial_j=0.1", "controller.tank.reserve_
 RESTART_AT_S = 1.5
 
 
-def lockstep_passive_with_restart() -> str:
+def lockstep_passive_with_restart(hand_port: str = "object") -> str:
     """Lockstep run of the three services with the simulated operator (repeated grasps) and
     hand, the controller restarted at 1.5 s: the physical audit (``sim.operator`` /
     ``sim.audit``) must show delivered <= initial tanks + taken at every sample."""
-    cfg = load_config(None, list(LOCKSTEP_OVERRIDES))
+    cfg = load_config(None, [*LOCKSTEP_OVERRIDES, f"controller.ports.hand_port={hand_port}"])
 
     def hook(t_s: float, ctx: LockstepContext) -> None:
         if t_s >= RESTART_AT_S and ctx.controller_restarts == 0:
@@ -247,23 +277,38 @@ def lockstep_passive_with_restart() -> str:
     return ""
 
 
+#: the operator closes and holds against an object that yields (a box pushed across a table):
+#: every joule the fingers put in is gone, so only the tank can stop them pushing
+PUSH = Scenario(seed=2, steps=6000, wall_rad=(0.3, 0.3, 0.3), hand_every=25, ref_period_s=8.0,
+                op_stiffness=1000.0, wall_speed_rad_s=0.05)
+
+
+def loop_passive_yielding(hand_port: str = "object") -> str:
+    """Closed-loop harness, 0.1 J tanks, the yielding object: the audit of the harness
+    physics at every sample."""
+    p = _params(initial_j=0.1, reserve_j=0.02, hand_port=hand_port)
+    suite = CONTROLLERS["two-layer"]
+    return audit_failure(run_loop(suite, p, PUSH), initial_tank_j(suite, p))
+
+
 #: repeated grasps into the wall with the hand at 40 Hz: opening and closing every second
 CYCLES = Scenario(seed=3, steps=8000, hand_every=25, ref_period_s=1.0, ref_fraction=1.0,
                   wall_rad=(0.6, 0.6, 0.6))
 
 
-def loop_passive_cycles() -> str:
+def loop_passive_cycles(hand_port: str = "object") -> str:
     """Closed-loop harness, 0.1 J tanks, eight open-close cycles into the wall: the audit of
     the harness physics (work on the operator and on the wall) at every sample."""
-    p = _params(initial_j=0.1, reserve_j=0.02)
+    p = _params(initial_j=0.1, reserve_j=0.02, hand_port=hand_port)
     suite = CONTROLLERS["two-layer"]
     return audit_failure(run_loop(suite, p, CYCLES), initial_tank_j(suite, p))
 
 
-def lockstep_passive_grasps() -> str:
+def lockstep_passive_grasps(hand_port: str = "object") -> str:
     """Lockstep run, 8 s of the virtual operator's repeated grasps on the simulated hand,
     0.1 J tanks: the physical audit at every sample."""
-    r = run_lockstep(load_config(None, list(LOCKSTEP_OVERRIDES)), 8.0, seed=1)
+    r = run_lockstep(load_config(None, [*LOCKSTEP_OVERRIDES,
+                                        f"controller.ports.hand_port={hand_port}"]), 8.0, seed=1)
     assert r.has_audit
     worst = float(np.min(r.audit_margin_j))
     if worst < -TOL_J:
@@ -271,7 +316,7 @@ def lockstep_passive_grasps() -> str:
     return ""
 
 
-CHECKS: dict[str, Callable[[], str]] = {
+CHECKS: dict[str, Callable[[str], str]] = {
     "master_passive_steady": master_passive_steady,
     "master_keeps_reserve_steady": master_keeps_reserve_steady,
     "master_passive_zigzag": master_passive_zigzag,
@@ -279,36 +324,42 @@ CHECKS: dict[str, Callable[[], str]] = {
     "lockstep_passive_with_restart": lockstep_passive_with_restart,
     "loop_passive_cycles": loop_passive_cycles,
     "lockstep_passive_grasps": lockstep_passive_grasps,
+    "loop_passive_yielding": loop_passive_yielding,
 }
 
-#: which check catches which mutant
-CAUGHT_BY: dict[str, str] = {
-    "port_work_sign_flipped": "master_passive_steady",
-    "dissipation_over_credited_x50": "loop_passive_squeeze",
-    "franken_limiter_removed": "master_keeps_reserve_steady",
-    "guard_removed": "master_passive_zigzag",
-    "quanta_as_increments": "lockstep_passive_grasps",
-    "store_below_zero": "loop_passive_squeeze",
-    "setpoint_modulation_skipped": "loop_passive_squeeze",
-    "epoch_credited_on_restart": "lockstep_passive_with_restart",
-    "refund_in_contact": "loop_passive_squeeze",
-    "two_sided_damping_credit": "loop_passive_cycles",
+#: which check, with which hand layer (``controller.ports.hand_port``), catches which mutant
+CAUGHT_BY: dict[str, tuple[str, str]] = {
+    "port_work_sign_flipped": ("master_passive_steady", "object"),
+    "dissipation_over_credited_x50": ("loop_passive_squeeze", "servo"),
+    "franken_limiter_removed": ("master_keeps_reserve_steady", "object"),
+    "guard_removed": ("master_passive_zigzag", "object"),
+    "quanta_as_increments": ("lockstep_passive_grasps", "servo"),
+    "store_below_zero": ("loop_passive_yielding", "object"),
+    "setpoint_modulation_skipped": ("loop_passive_squeeze", "servo"),
+    "epoch_credited_on_restart": ("lockstep_passive_with_restart", "servo"),
+    "refund_in_contact": ("loop_passive_squeeze", "servo"),
+    "two_sided_damping_credit": ("loop_passive_cycles", "servo"),
+    "object_work_sign_flipped": ("loop_passive_squeeze", "object"),
+    "object_work_not_charged": ("loop_passive_yielding", "object"),
+    "reservation_ignored": ("loop_passive_squeeze", "object"),
 }
+USED = sorted(set(CAUGHT_BY.values()))
 
 
 def test_every_mutant_has_a_check() -> None:
     assert set(CAUGHT_BY) == set(MUTANTS)
-    assert set(CAUGHT_BY.values()) == set(CHECKS)
+    assert {check for check, _ in CAUGHT_BY.values()} == set(CHECKS)
 
 
-@pytest.mark.parametrize("check", sorted(CHECKS))
-def test_check_passes_unpatched(check: str) -> None:
-    fail = CHECKS[check]()
+@pytest.mark.parametrize(("check", "hand_port"), USED)
+def test_check_passes_unpatched(check: str, hand_port: str) -> None:
+    fail = CHECKS[check](hand_port)
     assert not fail, fail
 
 
 @pytest.mark.parametrize("mutant", sorted(MUTANTS))
 def test_mutant_is_caught(mutant: str, monkeypatch: pytest.MonkeyPatch) -> None:
     MUTANTS[mutant](monkeypatch)
-    fail = CHECKS[CAUGHT_BY[mutant]]()
+    check, hand_port = CAUGHT_BY[mutant]
+    fail = CHECKS[check](hand_port)
     assert fail, f"{mutant} passed {CAUGHT_BY[mutant]}"

@@ -128,6 +128,41 @@ def test_serial_faults_are_retried_then_the_hand_goes_safe(
         emu.stop()
 
 
+@pytest.mark.parametrize("protocol", [1, 2])
+def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int) -> None:
+    emu = emulator(protocol, physics="simple")
+    hand = build_dynamixel_hand(config(emu))
+    servo_id = hand.cfg.ids[1]  # finger 2
+    servo = emu.bus.servos[1]
+    try:
+        hand.start()
+        run_for(hand, command(0.3), 0.3)
+        assert hand.servo_fault_trips == 0 and not hand.servo_fault_reason
+        emu.bus.faults = FaultConfig(overload_ids=(servo_id,))
+        faults = hand.read(0.0).faults
+        assert hand.servo_fault_trips == 1
+        assert f"servo {servo_id} overload" in hand.servo_fault_reason
+        assert any("safe state" in f and f"servo {servo_id} overload" in f for f in faults)
+        held = [s.peek("goal_position") for s in emu.bus.servos]
+        run_for(hand, command(1.0, preshape=0.5), 0.3)  # ignored while the bit is set
+        assert [s.peek("goal_position") for s in emu.bus.servos] == held
+        assert hand.servo_fault_trips == 1  # one episode, however many readings
+        assert any("safe state" in f for f in hand.read(0.5).faults)
+        assert servo.peek("torque_enable") == 0  # the servo's own alarm shutdown
+        emu.bus.faults = FaultConfig()  # the overload clears
+        faults = hand.read(1.0).faults
+        assert not hand.servo_fault_reason and not any("safe state" in f for f in faults)
+        assert all(s.peek("torque_enable") == 1 for s in emu.bus.servos)  # torque back on
+        # resumed: commands are followed again, from where the fingers were held
+        moved = run_for(hand, command(1.0), 3.0, until=lambda r: all(
+            f.motor_angle_rad > 0.9 for f in r[-1].fingers))
+        assert all(f.motor_angle_rad > 0.9 for f in moved[-1].fingers)
+        assert hand.servo_fault_trips == 1 and not hand.safe_reason
+    finally:
+        hand.close()
+        emu.stop()
+
+
 def test_vanished_port_raises_device_not_connected_without_hanging() -> None:
     emu = emulator(1, physics="simple")
     hand = build_dynamixel_hand(config(emu))

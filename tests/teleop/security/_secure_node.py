@@ -13,7 +13,8 @@
 - ``encode_hand_command``: publish valid encoded HandCommands to angle ``float(tag)``
   whose cumulative energy total grows by ``energy_j`` with every message;
 - ``token``: declare the role's liveliness token (so a service sees the role alive);
-- ``first_seq``: sequence number of the first message (default 10**12).
+- ``first_seq``: sequence number of the first message (default 5000: ahead of a real
+  sender's, within the receiver's ``safety.seq_jump_max`` window).
 
 Prints ``READY`` once subscribed, then one ``RESULT {json}`` line: the ``[key, tag]`` pairs it
 received from others (subscribed to ``teleop/<session>/**``) and the most peers it saw.
@@ -112,9 +113,10 @@ def main() -> int:
         threading.Timer(float(spec["run_s"]), stop.set).start()
     pubs = [(data_key(session_name, sig), tag) for sig, tag in spec.get("pub", [])]
     peers = 0
-    # default: far above a real sender's, so the receiver's stale-sequence filter passes it;
+    # default: ahead of a real sender's (which counts from 1 at 50 Hz) and within the jump
+    # window, so the receiver's sequence filters pass it and only security can stop it;
     # ``first_seq`` 1 makes the node a sender starting afresh (its energy total is credited)
-    seq = int(spec.get("first_seq", 10**12))
+    seq = int(spec.get("first_seq", 5000))
     n_sent = 0
     while not stop.is_set():
         for key, tag in pubs:

@@ -2,8 +2,8 @@
 
 The hand and the controller run :class:`~teleop.transport.zenoh_bus.ZenohBus` from the config
 (``ZenohBus.from_config`` merges ``secure_zenoh_config``), each in its own process.  Intruders
-publish valid, encoded HandCommands (with sequence numbers far ahead, so the bus's own
-stale-sequence filter would let them through) straight at the hand.  As a control, the same
+publish valid, encoded HandCommands (with sequence numbers ahead of the real sender's and
+within the jump window, so the bus's own sequence filters would let them through) straight at the hand.  As a control, the same
 intruder without security reaches the hand, so it is the security layer that stops it.
 """
 

@@ -30,6 +30,12 @@ def test_bench_transport_json(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     assert fig["delay_error_p50_us"] < 1000.0
     assert fig["received_fraction"] >= 0.95 and fig["delay_received_fraction"] >= 0.95
     assert fig["messages_per_s"] > 1000.0
+    # every p99 has its max beside it, and max >= p99 >= p50 (a stall cannot hide)
+    for prefix in ("", "backward_", "rtt_", "raw_rtt_"):
+        p50, p99, top = (fig[f"{prefix}{q}_us"] for q in ("p50", "p99", "max"))
+        assert top >= p99 >= p50 > 0, prefix
+    assert fig["delay_error_max_us"] >= fig["delay_error_p99_us"] >= 0
+    assert fig["delay_error_max_us"] >= abs(fig["delay_error_min_us"])
 
 
 def test_unknown_bench_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:

@@ -185,3 +185,93 @@ def test_keys_and_links() -> None:
         link_between("master", "hand")
     assert set(signals_received_by("controller")) == {"master_state", "hand_state"}
     assert signals_received_by("master") == ("force_command",)
+
+
+def _seqs(bus, signal: str = "master_state") -> list[int]:  # noqa: ANN001
+    return [r.message.header.seq for r in bus.receive(signal)]
+
+
+@pytest.mark.parametrize("cap", [1000, None])
+def test_a_forged_seq_far_ahead_is_rejected_and_the_sender_keeps_working(
+        cap: int | None) -> None:
+    clock = VirtualClock()
+    hub = InProcessHub(LinksConfig(), clock, seq_jump_max=cap)
+    master, ctrl = hub.bus("master"), hub.bus("controller")
+    for i in (1, 2, 3):
+        master.publish("master_state", ms(i))
+    ctrl.inject("master_state", encode(ms(10**12)))  # well formed, seq far ahead
+    for i in (4, 5, 6):
+        master.publish("master_state", ms(i))
+    got = _seqs(ctrl)
+    rej = ctrl.stats().rejects
+    if cap is None:  # the check is load-bearing: without it the sender is shut out as stale
+        assert got == [1, 2, 3, 10**12]
+        assert rej.count("stale_seq") == 3
+        return
+    assert got == [1, 2, 3, 4, 5, 6]
+    assert rej.count("seq_jump") == 1 and rej.count("stale_seq") == 0
+    # a restarted sender (a new epoch) is accepted from its first seq again
+    master.close()
+    master = hub.bus("master")
+    for i in (1, 2):
+        master.publish("master_state", ms(i))
+    assert _seqs(ctrl) == [1, 2]
+    assert ctrl.stats().rejects.rejected == 1
+
+
+def test_the_config_default_caps_seq_jumps() -> None:
+    cfg = load_config(None, [])
+    assert cfg.safety.seq_jump_max == 10_000
+    hub = InProcessHub.from_config(cfg, VirtualClock())
+    master, ctrl = hub.bus("master"), hub.bus("controller")
+    master.publish("master_state", ms(1))
+    master.publish("master_state", ms(1 + 10_000))  # at the cap: accepted
+    master.publish("master_state", ms(20_002))  # beyond it: rejected
+    master.publish("master_state", ms(10_002))
+    assert _seqs(ctrl) == [1, 10_001, 10_002]
+    assert ctrl.stats().rejects.count("seq_jump") == 1
+
+
+def test_a_long_outage_resyncs_the_seq_filter_but_a_forged_burst_does_not() -> None:
+    from teleop.transport.bus import SEQ_REBASE_MIN_S
+
+    clock = VirtualClock()
+    hub = InProcessHub(LinksConfig(), clock, seq_jump_max=100)
+    master, ctrl = hub.bus("master"), hub.bus("controller")
+    master.publish("master_state", ms(1))
+    assert _seqs(ctrl) == [1]
+    # a consistent burst of forged seqs, the genuine sender heard in between: no resync
+    for k in range(400):
+        ctrl.inject("master_state", encode(ms(10**9 + k)))
+        if k % 10 == 9:
+            master.publish("master_state", ms(2 + k // 10))
+        clock.advance(DT_S)
+    assert _seqs(ctrl) == list(range(2, 42))
+    assert ctrl.stats().rejects.count("seq_jump") == 400
+    # the genuine sender back from an outage of 5000 messages (its token kept): after
+    # SEQ_REBASE_MIN_S of rejections its numbering is accepted again
+    n = 0
+    got: list[int] = []
+    while not got:
+        master.publish("master_state", ms(5000 + n))
+        got = _seqs(ctrl)
+        n += 1
+        clock.advance(DT_S)
+    assert got == [5000 + n - 1]
+    assert n - 1 == pytest.approx(SEQ_REBASE_MIN_S / DT_S, abs=1.5)
+    master.publish("master_state", ms(5000 + n))
+    assert _seqs(ctrl) == [5000 + n]
+    assert ctrl.stats().rejects.count("seq_jump") == 400 + n - 1
+    assert ctrl.stats().rejects.count("stale_seq") == 0
+
+
+def test_a_forged_seq_far_ahead_with_a_forged_total_counts_as_an_energy_reject() -> None:
+    clock = VirtualClock()
+    hub = InProcessHub(LinksConfig(), clock, energy_jump_max_j=10.0, seq_jump_max=1000)
+    master, ctrl = hub.bus("master"), hub.bus("controller")
+    master.publish("master_state", ms(1))
+    ctrl.inject("master_state", encode(MasterState(Header(10**12, 0.0, 1e9), 0.01, 0.0)))
+    master.publish("master_state", ms(2))
+    assert _seqs(ctrl) == [1, 2]
+    rej = ctrl.stats().rejects
+    assert rej.count("energy_jump") == 1 and rej.count("seq_jump") == 0

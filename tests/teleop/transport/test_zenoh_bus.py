@@ -161,6 +161,54 @@ def test_bad_bytes_over_zenoh_are_counted_not_raised(endpoint: str) -> None:
     assert st.count("malformed") == 1 and st.count("too_large") == 1
 
 
+def test_a_forged_seq_far_ahead_over_zenoh_is_dropped_and_restart_still_works(
+        endpoint: str) -> None:
+    import zenoh
+
+    ctrl = ZenohBus("controller", session="t", listen=[endpoint], connect=[], seq_jump_max=1000)
+    master = ZenohBus("master", session="t", listen=[], connect=[endpoint])
+    forger = zenoh.open(zenoh_config("peer", [], [endpoint]))
+    got: list[int] = []
+
+    def receive_until(n: int) -> Callable[[], bool]:
+        def done() -> bool:
+            got.extend(r.message.header.seq for r in ctrl.receive("master_state"))
+            return len(got) >= n
+        return done
+
+    def send(bus: ZenohBus, seqs: range) -> None:
+        for i in seqs:
+            bus.publish("master_state", MasterState(Header(i, time.monotonic(), 0.0), 0.01, 0.0))
+
+    try:
+        wait_for(lambda: ctrl.alive("master"), 10.0, "the master's liveliness")
+        wait_for(lambda: len(forger.info.peers_zid()) > 0, 10.0, "the forger's connection")
+        time.sleep(0.2)  # let the subscriber declaration propagate
+        send(master, range(1, 4))
+        wait_for(receive_until(3), 5.0, "the first messages")
+        forger.put(data_key("t", "master_state"), encode(MasterState(Header(10**12, 0.0, 0.0),
+                                                                     0.01, 0.0)))
+        wait_for(lambda: receive_until(3)() and ctrl.stats().rejects.count("seq_jump") == 1,
+                 5.0, "the rejection")
+        send(master, range(4, 7))
+        wait_for(receive_until(6), 5.0, "the sender's next messages")
+        master.close()  # restart: the new incarnation counts from 1 again
+        wait_for(lambda: not ctrl.alive("master"), 5.0, "the token to go")
+        master = ZenohBus("master", session="t", listen=[], connect=[endpoint])
+        wait_for(lambda: ctrl.alive("master"), 10.0, "the restarted master's liveliness")
+        ctrl.receive("master_state")  # take the new epoch before its first message
+        time.sleep(0.2)
+        send(master, range(1, 3))
+        wait_for(receive_until(8), 5.0, "the restarted sender's messages")
+    finally:
+        forger.close()
+        master.close()
+        ctrl.close()
+    assert got == [1, 2, 3, 4, 5, 6, 1, 2]
+    st = ctrl.stats().rejects
+    assert st.count("seq_jump") == 1 and st.rejected == 1
+
+
 def test_unusable_endpoints_are_one_line_config_errors(master_bus: ZenohBus,
                                                        endpoint: str) -> None:
     for listen in ([endpoint], ["bogus"]):  # in use by master_bus; malformed

@@ -1,0 +1,65 @@
+"""Each assumption of the two-layer hand's passivity argument, violated on purpose: what happens.
+
+The argument (docs/controllers.md, "The hand's environment port") rests on: the tactile
+cells read the contact force within the margin ``m`` of their calibration; the servo is no
+stiffer, no stronger and no less damped than the port model says; the hand samples at its
+40 Hz.  Each test runs the closed-loop harness with 0.1 J tanks against an object that
+yields (a box pushed across a table: every joule the fingers put in is gone, the hardest case
+for a bound) or a fixed wall, with the assumption broken in the harness's *physics*, and
+judges the loop by the harness's own energy audit.
+
+Outcome, measured: breaking the servo and sample-rate assumptions leaves the loop passive
+(the tank pays for the work measured at the object, not for what the servo model predicts);
+a tactile sensor that reads low beyond the margin breaks the bound on the yielding object.
+That one is load-bearing and has no run-time alarm yet (issue 13's notes).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+from _ctl_harness import Scenario, audit_failure, initial_tank_j, run_loop
+
+from teleop.config.control import ControllerConfig
+from teleop.control.interface import control_params
+from teleop.control.registry import CONTROLLERS
+
+#: the operator closes and holds; the object yields at 0.05 rad/s while pressed
+PUSH = Scenario(seed=2, steps=6000, wall_rad=(0.3, 0.3, 0.3), hand_every=25, ref_period_s=8.0,
+                op_stiffness=1000.0, wall_speed_rad_s=0.05)
+#: the same against a fixed wall
+SQUEEZE = replace(PUSH, wall_speed_rad_s=0.0, steps=4000, ref_period_s=6.0, seed=1)
+
+P = replace(control_params(ControllerConfig(kind="two-layer")), initial_j=0.1, reserve_j=0.02)
+SUITE = CONTROLLERS["two-layer"]
+
+
+def audit(sc: Scenario) -> str:
+    return audit_failure(run_loop(SUITE, P, sc), initial_tank_j(SUITE, P))
+
+
+@pytest.mark.parametrize("base", [PUSH, SQUEEZE], ids=["yielding", "fixed"])
+@pytest.mark.parametrize("broken", [
+    {"servo_stiffness_factor": 3.0},   # the servo 3x stiffer than modelled
+    {"servo_torque_factor": 2.0},      # twice the modelled torque limit
+    {"servo_damping_factor": 0.2},     # a fifth of the assumed damping
+    {"hand_every": 200},               # the hand sampled at 5 Hz instead of 40 Hz
+    {"sensor_gain_factor": 3.0},       # tactile cells reading 3x high
+], ids=["servo-stiffer", "servo-stronger", "servo-less-damped", "hand-at-5-hz",
+        "sensor-reads-high"])
+def test_still_passive_when_the_servo_or_the_rate_is_not_as_modelled(base: Scenario,
+                                                                     broken: dict) -> None:
+    assert audit(base) == ""
+    assert audit(replace(base, **broken)) == ""
+
+
+def test_a_sensor_within_its_margin_keeps_the_bound() -> None:
+    assert audit(replace(PUSH, sensor_gain_factor=1.0 / P.tactile.force_margin)) == ""
+
+
+@pytest.mark.parametrize("gain", [0.5, 1.0 / 3.0])
+def test_a_sensor_reading_low_beyond_the_margin_breaks_the_bound(gain: float) -> None:
+    """The load-bearing assumption: the audit shows energy generated on the yielding object
+    (the tank pays for a fraction of the work the fingers really do)."""
+    assert audit(replace(PUSH, sensor_gain_factor=gain)) != ""
