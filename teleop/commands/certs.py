@@ -13,8 +13,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("certs", help="create a local CA and the services' TLS certificates, "
                        "keys and passwords for secure mode (config/secure.toml)")
     p.add_argument("directory", type=Path, metavar="DIR",
-                   help="directory to write ca.pem, ca.key, <role>.pem, <role>.key and "
-                   "credentials.txt into (created if missing)")
+                   help="directory to write ca.pem, ca.key, <role>.pem, <role>.key, "
+                   "<role>.credentials and credentials.txt into (created if missing)")
     p.add_argument("--hostname", dest="hostnames", action="append", default=[],
                    metavar="NAME", help="extra DNS name or IP address the certificates are "
                    "valid for, besides localhost and 127.0.0.1 (repeatable)")
@@ -32,14 +32,17 @@ def run(args: argparse.Namespace) -> int:
                           force=args.force)
     info(args, f"CA certificate   {bundle.ca_cert}")
     info(args, f"CA private key   {bundle.ca_key}  (keep offline; only needed to issue more)")
+    own = dict(bundle.role_credentials)
     for role, cert, key in bundle.certs:
-        info(args, f"{role:<16} {cert}  {key}")
-    info(args, f"credentials      {bundle.credentials}  (user:password per role)")
+        info(args, f"{role:<16} {cert}  {key}  {own[role]}")
+    info(args, f"credentials      {bundle.credentials}  (user:password per role: only the "
+               f"listening service, the controller, needs it)")
     info(args, f"run securely:    teleop up --config config/secure.toml "
                f"--set security.cert_dir={bundle.directory}")
     write_json(args.json_path, {
         "directory": str(bundle.directory), "ca_cert": str(bundle.ca_cert),
         "ca_key": str(bundle.ca_key), "credentials": str(bundle.credentials),
-        "certs": {role: {"cert": str(c), "key": str(k)} for role, c, k in bundle.certs},
+        "certs": {role: {"cert": str(c), "key": str(k), "credentials": str(own[role])}
+                  for role, c, k in bundle.certs},
     })
     return 0

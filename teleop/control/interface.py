@@ -156,7 +156,8 @@ class HandOutput:
     ledger: EnergyLedger
     setpoint_desired_rad: tuple[float, float, float]  # what the command asked for
     limited: bool  # set-position modulation moved the set-point
-    spring_energy_j: float  # modelled servo spring energy 0.5 K |setpoint - motor angle|^2
+    spring_energy_j: float  # servo layer: modelled servo spring energy; object layer: what the
+    # fingers hold back (servo potential + tendon stretch at the set-point, the reservation)
 
 
 @dataclass(frozen=True, slots=True)

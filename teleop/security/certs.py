@@ -7,7 +7,10 @@
     DIR/<role>.pem        service certificate, common name = role, SANs localhost/127.0.0.1/::1
                           plus the given hostnames; usable as TLS server and client (mTLS)
     DIR/<role>.key        service private key (PKCS#8 PEM, mode 0600)
+    DIR/<role>.credentials  the role's own ``user:password`` line (mode 0600): all a
+                          connecting service needs
     DIR/credentials.txt   zenoh user/password dictionary, one ``user:password`` line per role
+                          (mode 0600): only the listening service (the controller) needs it
 
 Keys are ECDSA P-256; the zenoh ACL identifies a peer by its certificate common name.
 """
@@ -28,8 +31,9 @@ from teleop.errors import UserInputError
 __all__ = ["ROLES", "CertError", "CertBundle", "create_certs", "read_credentials",
            "cert_common_name"]
 
-#: The three services, each with its own certificate, key and zenoh user.
-ROLES: tuple[str, ...] = ("master", "controller", "hand")
+#: The three services and the observer (a dashboard session that may only subscribe), each
+#: with its own certificate, key and zenoh user.
+ROLES: tuple[str, ...] = ("master", "controller", "hand", "observer")
 
 _HOST_RE = re.compile(r"^(?=.{1,253}$)(\*\.)?[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?"
                       r"(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)*$")
@@ -49,6 +53,7 @@ class CertBundle:
     ca_key: Path
     certs: tuple[tuple[str, Path, Path], ...]  # (role, certificate, private key)
     credentials: Path
+    role_credentials: tuple[tuple[str, Path], ...] = ()  # (role, its own user:password file)
 
 
 def _check_hostnames(hostnames: Sequence[str]) -> list[str]:
@@ -96,7 +101,8 @@ def _write(path: Path, data: bytes, private: bool) -> None:
 def create_certs(directory: Path | str, *, hostnames: Sequence[str] = (),
                  roles: Sequence[str] = ROLES, days: int = 825, force: bool = False,
                  organisation: str = "teleop") -> CertBundle:
-    """Create a CA, a certificate and key per role, and a credentials file in ``directory``."""
+    """Create a CA, a certificate, key and own password file per role, and the credentials
+    dictionary in ``directory``."""
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes, serialization
     from cryptography.hazmat.primitives.asymmetric import ec
@@ -110,7 +116,7 @@ def create_certs(directory: Path | str, *, hostnames: Sequence[str] = (),
     hosts = _check_hostnames(hostnames)
     directory = Path(directory)
     names = ["ca.pem", "ca.key", "credentials.txt"]
-    names += [f"{r}{ext}" for r in roles for ext in (".pem", ".key")]
+    names += [f"{r}{ext}" for r in roles for ext in (".pem", ".key", ".credentials")]
     _check_dir(directory, names, force)
 
     now = dt.datetime.now(dt.UTC)
@@ -178,11 +184,16 @@ def create_certs(directory: Path | str, *, hostnames: Sequence[str] = (),
         _write(cert_path, cert.public_bytes(pem), private=False)
         written.append((role, cert_path, key_path))
 
-    lines = "".join(f"{role}:{secrets.token_urlsafe(24)}\n" for role in roles)
+    lines = [f"{role}:{secrets.token_urlsafe(24)}\n" for role in roles]
+    own: list[tuple[str, Path]] = []
+    for role, line in zip(roles, lines, strict=True):  # each role's own line, alone
+        own_path = directory / f"{role}.credentials"
+        _write(own_path, line.encode("ascii"), private=True)
+        own.append((role, own_path))
     cred_path = directory / "credentials.txt"
-    _write(cred_path, lines.encode("ascii"), private=True)
+    _write(cred_path, "".join(lines).encode("ascii"), private=True)
     return CertBundle(directory, directory / "ca.pem", directory / "ca.key", tuple(written),
-                      cred_path)
+                      cred_path, tuple(own))
 
 
 def read_credentials(path: Path | str) -> dict[str, str]:

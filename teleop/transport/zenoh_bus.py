@@ -171,7 +171,9 @@ class ZenohBus:
         if "extra_config" not in kwargs:  # TLS, auth and ACL when security.enabled
             from teleop.security.zenoh_secure import secure_zenoh_config
 
-            kwargs["extra_config"] = secure_zenoh_config(cfg, role)
+            listen = kwargs.get("listen")  # explicit endpoints override the config's
+            kwargs["extra_config"] = secure_zenoh_config(
+                cfg, role, listening=None if listen is None else bool(listen))
         return cls(role, session=cfg.session.name, links=cfg.links, zenoh_cfg=cfg.zenoh,
                    **kwargs)  # type: ignore[arg-type]
 

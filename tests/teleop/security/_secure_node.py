@@ -3,6 +3,8 @@
 ``python _secure_node.py SPEC_JSON``.  SPEC keys:
 
 - ``role``, ``cert_dir``, ``session``, ``listen``, ``connect``: who the node is and its links;
+- ``mode``: zenoh mode, ``"peer"`` (default) or ``"client"`` (routed through the peer it
+  connects to, as a dashboard would be);
 - ``secure`` (bool): apply ``secure_zenoh_config`` (false: a plain, unauthenticated node);
 - ``tamper``: ``{"drop_auth": bool, "password": str, "drop_client_cert": bool,
   "drop_acl": bool}`` edits to the secure keys (an intruder's credentials);
@@ -35,7 +37,7 @@ def _zenoh_config(spec: dict) -> object:  # type: ignore[type-arg]
     from teleop.security.zenoh_secure import secure_zenoh_config
 
     zc = zenoh.Config()
-    zc.insert_json5("mode", json.dumps("peer"))
+    zc.insert_json5("mode", json.dumps(spec.get("mode", "peer")))
     zc.insert_json5("scouting/multicast/enabled", "false")
     zc.insert_json5("listen/endpoints", json.dumps(spec.get("listen", [])))
     zc.insert_json5("connect/endpoints", json.dumps(spec.get("connect", [])))

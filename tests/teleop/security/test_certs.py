@@ -47,11 +47,14 @@ def test_sans_cover_loopback_and_the_extra_hostnames(bundle_dir: Path) -> None:
 
 
 def test_private_files_are_owner_only_and_passwords_distinct(bundle_dir: Path) -> None:
-    for name in ["ca.key", "credentials.txt"] + [f"{r}.key" for r in ROLES]:
+    for name in ["ca.key", "credentials.txt"] + [f"{r}{e}" for r in ROLES
+                                                 for e in (".key", ".credentials")]:
         assert stat.S_IMODE((bundle_dir / name).stat().st_mode) == 0o600
     creds = read_credentials(bundle_dir / "credentials.txt")
-    assert set(creds) == set(ROLES)
-    assert len(set(creds.values())) == 3 and min(len(p) for p in creds.values()) >= 24
+    assert set(creds) == set(ROLES) and "observer" in creds
+    assert len(set(creds.values())) == len(ROLES) and min(len(p) for p in creds.values()) >= 24
+    for role in ROLES:  # a role's own file holds its own line only
+        assert read_credentials(bundle_dir / f"{role}.credentials") == {role: creds[role]}
 
 
 def test_existing_files_are_not_overwritten_without_force(bundle_dir: Path) -> None:
@@ -91,7 +94,8 @@ def test_cli_writes_the_bundle(tmp_path: Path, capsys: pytest.CaptureFixture[str
     out = capsys.readouterr().out
     assert '"ca_cert"' in out
     assert sorted(p.name for p in (tmp_path / "c").iterdir()) == sorted(
-        ["ca.pem", "ca.key", "credentials.txt"] + [f"{r}{e}" for r in ROLES for e in (".pem", ".key")])
+        ["ca.pem", "ca.key", "credentials.txt"]
+        + [f"{r}{e}" for r in ROLES for e in (".pem", ".key", ".credentials")])
 
 
 def test_bad_credentials_file(tmp_path: Path) -> None:

@@ -7,7 +7,9 @@ hand's loop starts (it waits for the controller's first command).  Intruders
 (valid credentials of the wrong role, no credentials, a wrong password) send valid hand
 commands that close the fingers to 2.5 rad with plenty of energy, straight to the hand.  The
 hand's recording shows the commands never arrived and the fingers never moved.  Control: the
-same intruder without security does move the hand.
+same intruder without security does move the hand.  Least privilege: the hand service also
+runs, connecting only, from a directory holding nothing but the CA and its own certificate, key
+and password file (no other role's password).
 """
 
 from __future__ import annotations
@@ -30,11 +32,21 @@ SESSION = "sechand"
 INTRUDER_ANGLE = "2.5"
 
 
-def _run_hand(tmp: Path, secure: bool, intruders: list[dict]) -> tuple[dict, list[dict]]:
-    """Run the hand service ~3 s under attack; its recording's key figures and the intruders'."""
+def _run_hand(tmp: Path, secure: bool, intruders: list[dict],
+              own_files_only: bool = False) -> tuple[dict, list[dict]]:
+    """Run the hand service ~3 s under attack; its recording's key figures and the intruders'.
+
+    ``own_files_only``: the hand only connects, from a directory holding just its own files.
+    """
     cert_dir = tmp / "certs"
     if secure:
         create_certs(cert_dir)
+    hand_dir = cert_dir
+    if own_files_only:
+        hand_dir = tmp / "hand-certs"
+        hand_dir.mkdir()
+        for name in ("ca.pem", "hand.pem", "hand.key", "hand.credentials"):
+            (hand_dir / name).write_bytes((cert_dir / name).read_bytes())
     proto = "tls" if secure else "tcp"
     p_ctrl, p_hand = _free_port(), _free_port()
     ctrl_ep, hand_ep = f"{proto}/127.0.0.1:{p_ctrl}", f"{proto}/127.0.0.1:{p_hand}"
@@ -48,10 +60,12 @@ def _run_hand(tmp: Path, secure: bool, intruders: list[dict]) -> tuple[dict, lis
     argv = [sys.executable, "-m", "teleop.cli", "run", "hand", "--duration", "3",
             "--dashboard", "off", "--record", str(tmp / "rec"), "--no-realtime",
             "--wait-peers", "15", "--set", f"session.name={SESSION}",
-            "--set", f"zenoh.endpoint='{ctrl_ep}'", "--set", f"zenoh.listen=['{hand_ep}']"]
+            "--set", f"zenoh.endpoint='{ctrl_ep}'"]
+    if not own_files_only:
+        argv += ["--set", f"zenoh.listen=['{hand_ep}']"]
     if secure:
         argv += ["--config", str(REPO / "config" / "secure.toml"),
-                 "--set", f"security.cert_dir='{cert_dir}'"]
+                 "--set", f"security.cert_dir='{hand_dir}'"]
     hand = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=tmp)
     procs = [_start({**base, "connect": [hand_ep, ctrl_ep], "run_s": 3.5,
@@ -89,6 +103,14 @@ def test_intruders_cannot_move_the_hand(tmp_path: Path) -> None:
     assert figures["proximal_max_rad"] < 0.02  # and the fingers did not move
     assert results[0]["peers"] >= 1 and results[1]["peers"] >= 1  # connected, yet denied
     assert results[2]["peers"] == 0 and results[3]["peers"] == 0  # refused outright
+
+
+def test_hand_service_runs_on_its_own_files_only(tmp_path: Path) -> None:
+    # connecting only, the hand holds no dictionary and no other role's password, yet it
+    # authenticates to the controller and its loop runs on the controller's commands
+    figures, _ = _run_hand(tmp_path, True, [], own_files_only=True)
+    assert not (tmp_path / "hand-certs" / "credentials.txt").exists()
+    assert figures["samples"] > 60
 
 
 def test_control_without_security_the_intruder_moves_the_hand(tmp_path: Path) -> None:

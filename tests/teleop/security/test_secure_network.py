@@ -3,7 +3,10 @@
 Topology as in ``teleop up``: the controller listens, the hand connects to it (and listens too,
 so that intruders can reach it directly).  Intruders connect to both and publish master state
 and hand commands on the real keys ``teleop/<session>/<role>/<signal>``.  Only the master's
-master state and the controller's hand commands may arrive.
+master state and the controller's hand commands may arrive.  Connecting nodes hold only their
+own password (no dictionary).  Two observers (the read-only role of a dashboard) publish too:
+one a zenoh client of the controller (which routes the session to it), one a peer connected to
+the controller and the hand directly.
 """
 
 from __future__ import annotations
@@ -101,6 +104,8 @@ def run_outcome(cert_dir: Path) -> dict[str, dict]:
         "no_client_cert": {"role": "controller", "tamper": {"drop_client_cert": True}},
         "plaintext": {"role": "controller", "secure": False,
                       "connect": [f"tcp/127.0.0.1:{p_ctrl}", f"tcp/127.0.0.1:{p_hand}"]},
+        "observer": {"role": "observer", "mode": "client", "connect": [tls_ctrl]},
+        "observer_peer": {"role": "observer"},
     }
     procs = {}
     for tag, case in cases.items():
@@ -198,3 +203,19 @@ else:
     print("OPENED")
     s.close()
 """
+
+
+def test_observer_reads_the_session_but_publishes_nothing(run_outcome: dict[str, dict]) -> None:
+    # the dashboard's session, a client of the controller, receives the master's state (and the
+    # controller's hand commands) through the controller
+    obs = run_outcome["observer"]["got"]
+    assert "master" in _tags(obs, "master_state")
+    assert "controller" in _tags(obs, "hand_command")
+    assert "hand" in _tags(obs, "hand_state")
+    # but nothing it publishes is accepted: not routed by the controller, not taken by the hand
+    # even from a direct link (the peer observer connected to both)
+    assert run_outcome["observer_peer"]["peers"] >= 2
+    for who in ("@controller", "@hand"):
+        got = {t for _, t in run_outcome[who]["got"]}
+        assert not {"observer", "observer_peer"} & got, who
+    assert _tags(run_outcome["@hand"]["got"], "hand_command") == {"controller"}
