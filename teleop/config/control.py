@@ -113,10 +113,6 @@ class TactileConfig:
                                 "net work on the object is charged x m while the object has "
                                 "received more than it gave back, / m otherwise",
                                 lo=1.0, hi=100.0)
-    angle_deadband_rad: float = param(0.0, "half-width of an optional play filter on the link "
-                                      "angles; what it can hide is charged and held back (off: "
-                                      "measured, those charges cost more than the encoder noise "
-                                      "it removes)", unit="rad", lo=0.0, hi=0.5)
 
 
 @dataclass(frozen=True, slots=True)

@@ -31,12 +31,10 @@ squeeze).
 Encoder noise ``n``: the work estimated from noisy angles differs from the true work by
 ``int F dn = [F n] - int n dF``; for noise that is zero-mean and independent of the contact
 force this averages out (an assumption, stated in docs/controllers.md; measured on the
-simulated hand's encoders it costs a few mJ per grasp through the max/min rule).  Optionally
-the angles pass a deadband (play) filter of half-width ``b`` (``angle_deadband_rad``, off by
-default): the tracked angle moves only when the reading leaves ``[tracked - b, tracked + b]``,
-and what the filter can hide is bounded and paid (with ``|theta - theta_f| <= b``: each sample
-is also charged ``b r |dF|`` and the tank holds back ``m b r F``, :func:`deadband_hold_j`).
-Measured, the filter's charges cost more than the noise it removes.
+simulated hand's encoders it costs a few mJ per grasp through the max/min rule).  A deadband
+(play) filter on the angles, with what it can hide charged (``b r |dF|`` per sample) and held
+back (``m b r F``), was tried and dropped: measured, its charges cost more than the noise it
+removes.
 """
 
 from __future__ import annotations
@@ -63,12 +61,11 @@ class TactileModel:
     distal_pad_m: tuple[float, float] = (0.0, 0.045)
     noise_floor: float = 6.0
     force_margin: float = 1.15
-    angle_deadband_rad: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
 class PadTrack:
-    """One finger's tracked contact: deadband-filtered angles, last forces and positions."""
+    """One finger's tracked contact: last angles, forces and positions."""
 
     proximal_rad: float
     distal_rad: float
@@ -142,23 +139,12 @@ def _split(model: TactileModel, pressure: tuple[float, ...]
     return cells[:n], cells[n:n + m]
 
 
-def _play(tracked: float, reading: float, b: float) -> float:
-    """Deadband (play) filter: ``tracked`` moved just enough to be within ``b`` of ``reading``
-    (a non-finite reading leaves it where it is)."""
-    if not math.isfinite(reading):
-        return tracked
-    return min(max(tracked, reading - b), reading + b)
-
-
-def _safe_work(model: TactileModel, f0: float, f1: float, ds: float,
-               lever_m: float) -> tuple[float, float]:
+def _safe_work(f0: float, f1: float, ds: float) -> tuple[float, float]:
     """(into, back) J for a pad that moved ``ds`` into the object between two samples: the
-    larger force for a move in, the smaller for a move out, plus the deadband's share
-    ``b lever |dF|`` charged either way."""
-    extra = model.angle_deadband_rad * lever_m * abs(f1 - f0)
+    larger force for a move in, the smaller for a move out."""
     if ds > 0.0:
-        return max(f0, f1) * ds + extra, 0.0
-    return extra, min(f0, f1) * (-ds)
+        return max(f0, f1) * ds, 0.0
+    return 0.0, min(f0, f1) * (-ds)
 
 
 def margin_charge_j(model: TactileModel, net_j: float) -> float:
@@ -186,22 +172,21 @@ def track_finger(model: TactileModel, prev: PadTrack,
                                 prev.prox_x_m if prev.prox_force_n > 0.0 else None)
     fd1, rd1 = contact_estimate(model, pd, model.distal_sensor_x_m, model.distal_pad_m,
                                 prev.dist_x_m if prev.dist_force_n > 0.0 else None)
-    b = model.angle_deadband_rad
-    tp1 = _play(prev.proximal_rad, f.proximal_rad, b)
-    td1 = _play(prev.distal_rad, f.distal_rad, b)
+    tp1 = f.proximal_rad if math.isfinite(f.proximal_rad) else prev.proximal_rad
+    td1 = f.distal_rad if math.isfinite(f.distal_rad) else prev.distal_rad
     dtp, dtd = tp1 - prev.proximal_rad, td1 - prev.distal_rad
     fp0, rp0, fd0, rd0 = prev.prox_force_n, prev.prox_x_m, prev.dist_force_n, prev.dist_x_m
     out_j = in_j = 0.0
     if fp0 > 0.0 or fp1 > 0.0:
         rs = [r for r, fo in ((rp0, fp0), (rp1, fp1)) if fo > 0.0]
-        c, t = _safe_work(model, fp0, fp1, max(r * dtp for r in rs), max(rs))
+        c, t = _safe_work(fp0, fp1, max(r * dtp for r in rs))
         out_j, in_j = out_j + c, in_j + t
     if fd0 > 0.0 or fd1 > 0.0:
         rs = [r for r, fo in ((rd0, fd0), (rd1, fd1)) if fo > 0.0]
         lever = model.proximal_length_m * math.cos(0.5 * (prev.distal_rad + td1))
         # the safe side of the two lever arms: the larger move in, the smaller move out
         ds = max((lever + r) * dtp + r * dtd for r in rs)
-        c, t = _safe_work(model, fd0, fd1, ds, model.proximal_length_m + 2.0 * max(rs))
+        c, t = _safe_work(fd0, fd1, ds)
         out_j, in_j = out_j + c, in_j + t
     track = PadTrack(proximal_rad=tp1, distal_rad=td1, prox_force_n=fp1, prox_x_m=rp1,
                      dist_force_n=fd1, dist_x_m=rd1)
@@ -214,20 +199,12 @@ def margin_net_j(model: TactileModel, charged_j: float) -> float:
     return charged_j / m if charged_j >= 0.0 else charged_j * m
 
 
-def deadband_hold_j(model: TactileModel, track: PadTrack) -> float:
-    """The boundary term ``m b r F`` the deadband may still hide (held back by the tank)."""
-    m, b = model.force_margin, model.angle_deadband_rad
-    return m * b * (track.prox_force_n * track.prox_x_m
-                    + track.dist_force_n * (model.proximal_length_m + 2.0 * track.dist_x_m))
-
-
 def track_hand(model: TactileModel, prev: tuple[PadTrack, ...] | None,
                fingers: tuple[FingerState, ...]
-               ) -> tuple[tuple[PadTrack, ...], float, float, float]:
-    """All fingers: ``(tracks, delivered J, taken J, held J)``."""
+               ) -> tuple[tuple[PadTrack, ...], float, float]:
+    """All fingers: ``(tracks, into J, back J)``."""
     if prev is None or len(prev) != len(fingers):
-        tracks = tuple(track_start(f) for f in fingers)
-        return tracks, 0.0, 0.0, 0.0
+        return tuple(track_start(f) for f in fingers), 0.0, 0.0
     out_j = in_j = 0.0
     tracks = []
     for t0, f in zip(prev, fingers, strict=True):
@@ -235,5 +212,4 @@ def track_hand(model: TactileModel, prev: tuple[PadTrack, ...] | None,
         tracks.append(t1)
         out_j += o
         in_j += i
-    held = sum(deadband_hold_j(model, t) for t in tracks)
-    return tuple(tracks), out_j, in_j, held
+    return tuple(tracks), out_j, in_j

@@ -287,14 +287,14 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     led = s.ledger
     x = measure_hand(s, fingers)
     y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
-    pads, into_j, back_j, pad_hold = track_hand(p.tactile, s.pads, fingers[:3])
+    pads, into_j, back_j = track_hand(p.tactile, s.pads, fingers[:3])
     net = s.object_net_j + into_j - back_j
     paid = margin_charge_j(p.tactile, s.object_net_j)
     charge = margin_charge_j(p.tactile, net) - paid
     # one sample cannot deliver more than the fingers held at its start (servo potential,
-    # tendon, pad term) plus their kinetic energy: a slip off the object, where the sampled
-    # estimate sees a large force over a long move, is charged no more than that
-    cap = s.held_j + p.finger_kinetic_j * sum(1 for _ in fingers[:3])
+    # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
+    # sees a large force over a long move, is charged no more than that
+    cap = s.held_j + p.finger_kinetic_j * len(fingers[:3])
     if charge > cap:
         charge = cap
         net = margin_net_j(p.tactile, paid + cap)
@@ -304,8 +304,8 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     k, tmax, kt = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm, \
         p.tendon_stiffness_nm_per_rad
     want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s)
-    y, limited = reserve_project(want, x, tank - p.min_j - pad_hold, k, tmax, kt)
-    held = hand_reservation_j(y, x, k, tmax, kt) + pad_hold
+    y, limited = reserve_project(want, x, tank - p.min_j, k, tmax, kt)
+    held = hand_reservation_j(y, x, k, tmax, kt)
     send = quantum_j(tank - max(hand_hold_j(p), held), p.reserve_j, p.transfer_fraction)
     tank -= send
     led = EnergyLedger(initial_j=led.initial_j, tank_j=tank,
@@ -315,8 +315,7 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited, spring_energy_j=held)
-    return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx,
-                         contact_prev=finger_contacts(fingers), pads=pads,
+    return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx, pads=pads,
                          object_net_j=net, held_j=held), out
 
 

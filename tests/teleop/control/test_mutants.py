@@ -154,8 +154,8 @@ def object_work_sign_flipped(mp: pytest.MonkeyPatch) -> None:
     track = two_layer.track_hand
 
     def swapped(model: Any, prev: Any, fingers: Any) -> Any:
-        tracks, out_j, in_j, held = track(model, prev, fingers)
-        return tracks, in_j, out_j, held
+        tracks, out_j, in_j = track(model, prev, fingers)
+        return tracks, in_j, out_j
     mp.setattr(two_layer, "track_hand", swapped)
 
 
@@ -164,8 +164,8 @@ def object_work_not_charged(mp: pytest.MonkeyPatch) -> None:
     track = two_layer.track_hand
 
     def free(model: Any, prev: Any, fingers: Any) -> Any:
-        tracks, _, in_j, held = track(model, prev, fingers)
-        return tracks, 0.0, in_j, held
+        tracks, _, in_j = track(model, prev, fingers)
+        return tracks, 0.0, in_j
     mp.setattr(two_layer, "track_hand", free)
 
 

@@ -95,7 +95,7 @@ def test_estimate_is_on_the_safe_side(k_n_per_m: float, x_m: float) -> None:
     assert est_out >= true_out
     assert est_in <= true_in
     # and not absurdly so: an elastic press and release costs well under what it stored (the
-    # deadband's hysteresis, its charged bound and the 40 Hz sampling: ~4 b r F + sum dF ds)
+    # 40 Hz sampling: sum dF ds)
     assert est_out - est_in <= 0.5 * true_out + 1e-4
 
 
@@ -119,10 +119,10 @@ def test_encoder_noise_during_a_hold_costs_little() -> None:
 
 def test_free_motion_costs_nothing() -> None:
     fingers = tuple(state(0.1, (0.0,) * 9) for _ in range(3))
-    tracks, o, i, held = track_hand(MODEL, None, fingers)
+    tracks, o, i = track_hand(MODEL, None, fingers)
     moved = tuple(state(1.5, (0.0,) * 9) for _ in range(3))
-    _, o, i, held = track_hand(MODEL, tracks, moved)
-    assert (o, i, held) == (0.0, 0.0, 0.0)
+    _, o, i = track_hand(MODEL, tracks, moved)
+    assert (o, i) == (0.0, 0.0)
 
 
 def test_reservation_covers_servo_and_tendon() -> None:
