@@ -22,6 +22,7 @@ from services.watchdog import WatchdogState, controller_state_watchdog, watchdog
 from teleop.config import TeleopConfig
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.interface import ControllerSuite, control_params
+from teleop.control.transparency_layer import combined_force_n
 from teleop.messages import HandState, MasterState
 from teleop.transport.bus import Bus
 
@@ -78,8 +79,10 @@ class ControllerService:
         self.state, out = self.suite.step_controller(self.state, self.params, self.master,
                                                      self.hand, t_s, self.dt_s)
         fc = out.force_command
-        if self.wd.gain < 1.0:
-            fc = replace(fc, force_n=fc.force_n * self.wd.gain)
+        if self.wd.gain < 1.0:  # the contact model is as stale as the force: both ramp out
+            g = self.wd.gain
+            fc = replace(fc, force_n=fc.force_n * g,
+                         model=tuple(v * g if i % 2 else v for i, v in enumerate(fc.model)))
         self.bus.publish("force_command", fc)
         self.bus.publish("hand_command", out.hand_command)
         led = self.ledger = out.ledger
@@ -93,7 +96,8 @@ class ControllerService:
             dissipated_j=led.dissipated_j, master_delay_s=m_delay, hand_delay_s=h_delay,
             master_dropped=float(self.master_dropped), hand_dropped=float(self.hand_dropped),
             watchdog=float(self.wd.tripped), force_gain=out.force_gain,
-            round_trip_s=out.round_trip_s)
+            round_trip_s=out.round_trip_s,
+            measured_force_n=combined_force_n(out.max_pressure, self.params))
 
     def close(self) -> None:
         """Nothing to release."""

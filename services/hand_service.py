@@ -89,6 +89,7 @@ class HandService:
         self.dropped = 0
         self.limit_count = 0
         self._was_limited = False
+        self._model_fallbacks = 0
         self.wd_params = hand_command_watchdog(cfg, watchdogs)
         self.wd = WatchdogState()
         self.events: list[str] = []
@@ -196,8 +197,12 @@ class HandService:
             header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
             fingers=reading.fingers, preshape_rad=reading.preshape_rad,
             echo_t_s=self.command.header.t_s if self.command is not None else -1.0,
-            echo_held_s=self._held_s(t_s))
+            echo_held_s=self._held_s(t_s), contact_model=out.contact_model)
         self.bus.publish("hand_state", state_msg)
+        if out.model_fallbacks > self._model_fallbacks:
+            self.events.append("contact model: estimate diverged, dropped (the operator feels "
+                               "the measured force until a new fit)")
+        self._model_fallbacks = out.model_fallbacks
         if out.limited:
             if not self._was_limited:
                 self.events.append("passivity layer limiting the set-points")
@@ -219,7 +224,8 @@ class HandService:
             received_j=led.received_j, dissipated_j=led.dissipated_j,
             spring_energy_j=out.spring_energy_j, limited=float(out.limited),
             limit_count=float(self.limit_count), delay_s=self.delay_s if got else math.nan,
-            dropped=float(self.dropped), watchdog=float(self.wd.tripped))
+            dropped=float(self.dropped), watchdog=float(self.wd.tripped),
+            model_fallbacks=float(out.model_fallbacks))
 
     def close(self) -> None:
         """Go safe and release the hand."""

@@ -81,7 +81,9 @@ class MasterService:
                                if self.wd.tripped else "watchdog: force commands resumed")
         cmd = self.command
         if cmd is not None and self.wd.gain < 1.0:
-            cmd = replace(cmd, force_n=cmd.force_n * self.wd.gain)
+            g = self.wd.gain  # the rendered contact model ramps out with the force
+            cmd = replace(cmd, force_n=cmd.force_n * g,
+                          model=tuple(v * g if i % 2 else v for i, v in enumerate(cmd.model)))
         reading = self.backend.read(t_s)
         self.state, out = self.suite.step_master(self.state, self.params,
                                                  reading.grip_position_m, cmd, self.dt_s)
@@ -110,7 +112,8 @@ class MasterService:
             sent_j=led.sent_j, received_j=led.received_j, dissipated_j=led.dissipated_j,
             tlc_damping_n_s_per_m=out.tlc_damping_n_s_per_m, limited=float(out.limited),
             limit_count=float(self.limit_count), delay_s=self.delay_s if got else math.nan,
-            dropped=float(self.dropped), watchdog=float(self.wd.tripped))
+            dropped=float(self.dropped), watchdog=float(self.wd.tripped),
+            model_force_n=out.model_force_n, model_phase=out.model_phase)
 
     def close(self) -> None:
         """Force off and release the device."""

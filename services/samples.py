@@ -37,6 +37,8 @@ class MasterSample:
     delay_s: float  # achieved controller->master delay of the latest message (nan: none)
     dropped: float  # force commands missing so far (sequence gaps)
     watchdog: float  # 1 while the force-command watchdog is tripped
+    model_force_n: float = 0.0  # the contact model rendered locally (model-mediated two-layer)
+    model_phase: float = 0.0  # share of the received contact model rendered (0: none)
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,6 +62,7 @@ class ControllerSample:
     watchdog: float  # 1 while the hand-state watchdog is tripped
     force_gain: float = 1.0  # delay-aware force-feedback gain in use
     round_trip_s: float = float("nan")  # measured round trip the gain is scheduled on
+    measured_force_n: float = float("nan")  # the hand's pressures through the force map, gain 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,6 +91,7 @@ class HandSample:
     delay_s: float  # achieved controller->hand delay of the latest command (nan: none)
     dropped: float
     watchdog: float  # 1 while the command watchdog is tripped
+    model_fallbacks: float = 0.0  # contact estimates dropped as diverged so far
 
 
 Sample = MasterSample | ControllerSample | HandSample

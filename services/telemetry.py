@@ -105,14 +105,16 @@ class Telemetry:
             dash.log_master(rec, t, trigger_position_m=s.trigger_position_m,
                             displayed_force_n=s.displayed_force_n, tank_j=s.tank_j,
                             port_in_j=s.port_in_j, port_out_j=s.port_out_j,
-                            delay_s=self._delays.get("MasterSample"))
+                            delay_s=self._delays.get("MasterSample"),
+                            model_force_n=s.model_force_n)
             self._dropped_event(dash, t, "force commands", s.dropped)
         elif isinstance(s, ControllerSample):
             dash.log_controller(rec, t, setpoints_rad=s.setpoint_rad,
                                 commanded_force_n=s.commanded_force_n,
                                 energy_stored_j=s.store_j,
                                 master_delay_s=self._delays.get("cm"),
-                                hand_delay_s=self._delays.get("ch"))
+                                hand_delay_s=self._delays.get("ch"),
+                                measured_force_n=s.measured_force_n)
             self._dropped_event(dash, t, "master states", s.master_dropped)
             self._dropped_event(dash, t, "hand states", s.hand_dropped)
         elif isinstance(s, HandSample) and reading is not None:

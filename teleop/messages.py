@@ -19,7 +19,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-SCHEMA_VERSION = 2  # 2: echo_t_s, echo_held_s in MasterState and HandState
+SCHEMA_VERSION = 3  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: contact models
+#: a contact model per finger travels as ``(contact_rad, stiffness)`` pairs, fingers 1-3
+#: flattened; stiffness 0 = no model for that finger
+NO_MODEL = (0.0,) * 6
 N_FINGERS = 3
 N_PRESSURE = 9  # per finger: 5 proximal, 4 distal
 
@@ -64,6 +67,10 @@ class ForceCommand:
 
     header: Header
     force_n: float
+    #: the contact model the master renders locally (model-mediated two-layer): per finger
+    #: ``(contact_rad, stiffness_n_per_rad)``, the force on the trigger per rad of that
+    #: finger's set-point beyond its contact angle; stiffness 0 = no model
+    model: tuple[float, ...] = NO_MODEL
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,6 +108,10 @@ class HandState:
     echo_t_s: float = -1.0
     #: how long the hand had held that HandCommand when it sent this (s, its own clock)
     echo_held_s: float = 0.0
+    #: the hand's contact estimate per finger ``(contact_rad, stiffness)``: the set-point at
+    #: which the finger meets the object and the settled peak pressure per rad beyond it
+    #: (raw pressure units / rad); stiffness 0 = no valid estimate
+    contact_model: tuple[float, ...] = NO_MODEL
 
 
 Message = MasterState | ForceCommand | HandCommand | HandState

@@ -172,6 +172,43 @@ class DelayAdaptConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class ContactModelConfig:
+    """Model-mediated rendering (two-layer): the hand estimates a contact model per finger,
+    the master renders it locally; see docs/controllers.md."""
+
+    enabled: bool = param(True, "two-layer: the hand estimates a contact model per finger and "
+                          "the master renders it at its own rate (off: the delayed measured "
+                          "force only)")
+    contact_pressure: float = param(20.0, "peak pressure at which a finger counts as touching "
+                                    "(it lets go below half of it)", lo=0.0, hi=1e5)
+    static_speed_rad_s: float = param(0.2, "a motor angle moving slower than this counts as "
+                                      "held", unit="rad/s", lo=0.0, hi=10.0)
+    settle_rate_per_s: float = param(0.5, "a held grasp has settled when its peak pressure "
+                                     "changes by less than this fraction per second", unit="1/s",
+                                     lo=0.0, hi=100.0)
+    memory_s: float = param(2.0, "time constant over which settled samples are remembered "
+                                 "(forgetting)", unit="s", lo=0.01, hi=1000.0)
+    evidence_s: float = param(0.05, "settled grasp time before the fitted stiffness replaces "
+                              "the prior", unit="s", lo=0.0, hi=100.0)
+    prior_stiffness: float = param(800.0, "stiffness sent from a finger's first touch until "
+                                   "settled samples give a fit (pressure units per rad; 0: send "
+                                   "nothing before a fit)", lo=0.0, hi=1e6)
+    min_deflection_rad: float = param(0.03, "settled samples closer than this to the contact "
+                                      "angle are not used for the stiffness", unit="rad", lo=0.0,
+                              hi=3.0)
+    removal_margin_rad: float = param(0.15, "a finger this far past its contact angle without "
+                                      "touching: the object is gone, the model dropped",
+                                      unit="rad", lo=0.0, hi=3.0)
+    stiffness_max: float = param(20000.0, "largest plausible stiffness (pressure units per rad); "
+                                 "above it the estimate counts as diverged", lo=0.0, hi=1e6)
+    force_rate_n_per_s: float = param(80.0, "a model update changes the rendered force at most "
+                                      "this fast", unit="N/s", lo=0.0, hi=1e5)
+    damping_periods: float = param(1.0, "rendered contact damping, in master periods times the "
+                                   "rendered stiffness (Colgate: more than half a period keeps a "
+                                   "sampled spring passive)", lo=0.0, hi=100.0)
+
+
+@dataclass(frozen=True, slots=True)
 class ControllerConfig:
     """Which controller runs and how."""
 
@@ -185,3 +222,5 @@ class ControllerConfig:
     transparency: TransparencyConfig = section(TransparencyConfig, "transparency layer")
     delay_adapt: DelayAdaptConfig = section(DelayAdaptConfig, "delay-aware force-feedback gain "
                                             "(two-layer's transparency layer)")
+    contact_model: ContactModelConfig = section(ContactModelConfig, "model-mediated rendering "
+                                                "(two-layer)")

@@ -29,11 +29,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from teleop.config.control import ControllerConfig
+from teleop.config.control import ContactModelConfig, ControllerConfig
 from teleop.control.delay_adapt import DelayAdaptParams, delay_adapt_params
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.object_port import TactileModel
-from teleop.messages import ForceCommand, HandCommand, Header, MasterState
+from teleop.messages import NO_MODEL, ForceCommand, HandCommand, Header, MasterState
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +80,8 @@ class ControlParams:
     tendon_stiffness_nm_per_rad: float = 5.0
     finger_kinetic_j: float = 0.015
     tactile: TactileModel = TactileModel()
+    # two-layer: model-mediated rendering (None = off; needs the linear trigger map)
+    contact_model: ContactModelConfig | None = None
 
 
 def control_params(cfg: ControllerConfig) -> ControlParams:
@@ -105,7 +107,9 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
         tendon_stiffness_nm_per_rad=pm.tendon_stiffness_nm_per_rad,
         finger_kinetic_j=pm.finger_kinetic_j,
         tactile=TactileModel(**{f: getattr(cfg.tactile, f)
-                                for f in TactileModel.__dataclass_fields__}))
+                                for f in TactileModel.__dataclass_fields__}),
+        contact_model=(cfg.contact_model if cfg.kind == "two-layer" and cfg.contact_model.enabled
+                       and tr.map_exponent == 1.0 else None))
 
 
 @dataclass(frozen=True, slots=True)
@@ -120,6 +124,8 @@ class MasterOutput:
     force_desired_n: float  # what the transparency layer asked for
     limited: bool  # the passivity layer reduced the force
     tlc_damping_n_s_per_m: float  # tank level controller damping in use
+    model_force_n: float = 0.0  # the locally rendered contact model's force (two-layer)
+    model_phase: float = 0.0  # share of the received contact model rendered (0: none)
 
 
 def master_message(out: MasterOutput, seq: int, t_s: float, echo_t_s: float = -1.0,
@@ -158,6 +164,8 @@ class HandOutput:
     limited: bool  # set-position modulation moved the set-point
     spring_energy_j: float  # servo layer: modelled servo spring energy; object layer: what the
     # fingers hold back (servo potential + tendon stretch at the set-point, the reservation)
+    contact_model: tuple[float, ...] = NO_MODEL  # HandState.contact_model to send
+    model_fallbacks: int = 0  # contact estimates dropped as diverged so far (all fingers)
 
 
 @dataclass(frozen=True, slots=True)

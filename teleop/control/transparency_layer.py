@@ -52,16 +52,19 @@ def max_pressures(fingers: tuple[FingerState, ...], p: ControlParams) -> Triple:
 
 def combined_force_n(max_p: Triple, p: ControlParams) -> float:
     """Unfiltered displayed force from the per-finger maxima."""
-    vals = [v for v, on in zip(max_p, p.finger_enable[:3], strict=True) if on]
+    return max(combine(max_p, p), 0.0) * p.force_per_pressure_n
+
+
+def combine(per_finger: Triple, p: ControlParams) -> float:
+    """The enabled fingers' values combined by ``force_combine`` (0 with none enabled)."""
+    vals = [v for v, on in zip(per_finger, p.finger_enable[:3], strict=True) if on]
     if not vals:
         return 0.0
     if p.force_combine == "max":
-        c = max(vals)
-    elif p.force_combine == "sum":
-        c = sum(vals)
-    else:
-        c = sum(vals) / len(vals)
-    return max(c, 0.0) * p.force_per_pressure_n
+        return max(vals)
+    if p.force_combine == "sum":
+        return sum(vals)
+    return sum(vals) / len(vals)
 
 
 def clip(x: float, limit: float) -> float:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from teleop.control.contact_model import FingerModel, model_wire, step_models
 from teleop.control.delay_adapt import DelayAdaptState, step_delay_adapt
 from teleop.control.energy_channel import EnergyLedger, TotalReceiver, receive_total
 from teleop.control.energy_tank import (
@@ -34,6 +35,13 @@ from teleop.control.energy_tank import (
     tlc_damping,
 )
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
+from teleop.control.model_render import (
+    RenderState,
+    damping_n_s_per_m,
+    model_energy_j,
+    model_force_n,
+    step_render,
+)
 from teleop.control.object_port import PadTrack, margin_charge_j, margin_net_j, track_hand
 from teleop.control.passivity_layer import (
     dissipation_lower_bound_j,
@@ -48,9 +56,11 @@ from teleop.control.transparency_layer import (
     TransparencyState,
     clip,
     grip_to_setpoints,
+    max_pressures,
     transparency_force,
 )
 from teleop.messages import (
+    NO_MODEL,
     FingerState,
     ForceCommand,
     HandCommand,
@@ -72,6 +82,7 @@ class MasterPortState:
     q_prev_m: float | None = None
     force_prev_n: float = 0.0
     rx: TotalReceiver = field(default_factory=TotalReceiver)
+    render: RenderState = field(default_factory=RenderState)
 
 
 def init_master(p: ControlParams) -> MasterPortState:
@@ -100,9 +111,12 @@ def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
     tank = led.tank_j - w
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(tank + inc, p.max_j)
-    send = quantum_j(tank, p.reserve_j, p.transfer_fraction)
+    render, f_model, f_damp, hold = render_model(s.render, p, command, q, v, tank, dt_s)
+    send = quantum_j(tank - hold, p.reserve_j, p.transfer_fraction)
     tank -= send
     f_des = clip(command.force_n, p.force_max_n) if command is not None else 0.0
+    if render.phase > 0.0 or f_model > 0.0:  # the delayed force fades as the model comes in
+        f_des = clip(max(f_model + f_damp, f_des * (1.0 - render.phase)), p.force_max_n)
     f_t = franken_limit(f_des, v, tank - p.min_j, dt_s)
     d = tlc_damping(tank, p.desired_j, p.tlc_gain, p.tlc_damping_max, p.trigger_mass_kg, dt_s)
     f_want = clip(f_t + d * v, p.force_max_n)
@@ -112,8 +126,23 @@ def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
                        received_j=led.received_j + inc, dissipated_j=led.dissipated_j + diss)
     out = MasterOutput(force_n=f, grip_position_m=q, grip_velocity_m_s=v,
                        energy_total_j=led.sent_j, ledger=led, force_desired_n=f_des,
-                       limited=(f_t != f_des) or (f != f_want), tlc_damping_n_s_per_m=d)
-    return MasterPortState(ledger=led, q_prev_m=q, force_prev_n=f, rx=rx), out
+                       limited=(f_t != f_des) or (f != f_want), tlc_damping_n_s_per_m=d,
+                       model_force_n=f_model, model_phase=render.phase)
+    return MasterPortState(ledger=led, q_prev_m=q, force_prev_n=f, rx=rx, render=render), out
+
+
+def render_model(r: RenderState, p: ControlParams, command: ForceCommand | None, q: float,
+                 v: float, tank_j: float, dt_s: float) -> tuple[RenderState, float, float, float]:
+    """Model-mediated rendering (:mod:`teleop.control.model_render`): the new rendered model,
+    its spring force and damping force at ``q``, and the stored energy the tank must keep."""
+    cm = p.contact_model
+    if cm is None:
+        return r, 0.0, 0.0, 0.0
+    model = command.model if command is not None else NO_MODEL
+    r = step_render(r, p, model, q, tank_j - p.min_j, cm.force_rate_n_per_s, dt_s)
+    f = model_force_n(r, p, q)
+    b = damping_n_s_per_m(r, p, cm.damping_periods, dt_s) if f > 0.0 else 0.0
+    return r, f, b * v, model_energy_j(r, p, q)
 
 
 # ------------------------------------------------------------------------------ controller
@@ -152,11 +181,26 @@ def transparency_commands(s: ControllerStoreState, p: ControlParams,
     return ts, sp, force, mp, raw
 
 
+def forward_model(p: ControlParams, hand: HandState | None) -> tuple[float, ...]:
+    """The hand's contact models as the master renders them: per enabled finger ``(contact_rad,
+    k)``, ``k`` in N of trigger force per rad of set-point (pressure stiffness times
+    ``force_per_pressure_n``); no model when rendering is off."""
+    if p.contact_model is None or hand is None:
+        return NO_MODEL
+    out: list[float] = []
+    for i in range(3):
+        c, k = hand.contact_model[2 * i], hand.contact_model[2 * i + 1]
+        ok = p.finger_enable[i] and k > 0.0 and math.isfinite(c) and math.isfinite(k)
+        out += [c, k * p.force_per_pressure_n] if ok else [0.0, 0.0]
+    return tuple(out)
+
+
 def make_commands(p: ControlParams, seq: int, t_s: float, force_n: float, to_master_j: float,
-                  setpoints: Triple, to_hand_j: float) -> tuple[ForceCommand, HandCommand]:
+                  setpoints: Triple, to_hand_j: float,
+                  model: tuple[float, ...] = NO_MODEL) -> tuple[ForceCommand, HandCommand]:
     """The two outgoing messages with their running energy totals."""
     fc = ForceCommand(header=Header(seq=seq, t_s=t_s, energy_total_j=to_master_j),
-                      force_n=force_n)
+                      force_n=force_n, model=model)
     hc = HandCommand(header=Header(seq=seq, t_s=t_s, energy_total_j=to_hand_j),
                      finger_setpoint_rad=setpoints, preshape_rad=p.preshape_rad,
                      mode=HandMode.POSITION)
@@ -184,7 +228,7 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s, adapt.gain)
     seq = s.seq + 1
     sent_m, sent_h = s.sent_to_master_j + to_m, s.sent_to_hand_j + to_h
-    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h)
+    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h, forward_model(p, hand))
     ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
                               sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt)
     return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=led,
@@ -205,6 +249,7 @@ class HandPortState:
     pads: tuple[PadTrack, ...] | None = None
     object_net_j: float = 0.0  # estimated net work on the object so far (before the margin)
     held_j: float = 0.0  # what the fingers could push into the object after the last sample
+    models: tuple[FingerModel, ...] | None = None  # contact model per finger (rendering on)
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -316,15 +361,31 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited, spring_energy_j=held)
     return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx, pads=pads,
-                         object_net_j=net, held_j=held), out
+                         object_net_j=net, held_j=held, models=s.models), out
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
               command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
-    """One hand-side sample: dissipation credit, free-motion refund, quanta, set-position
-    modulation (``hand_port = "servo"``), or :func:`step_hand_object`."""
-    if p.hand_port == "object":
-        return step_hand_object(s, p, fingers, command, dt_s)
+    """One hand-side sample: the passivity layer (:func:`step_hand_object`, or
+    :func:`step_hand_servo` for ``hand_port = "servo"``), then the contact models
+    (:mod:`teleop.control.contact_model`) on the set-point that was in force over the sample,
+    the measured motor angles and peak pressures."""
+    step = step_hand_object if p.hand_port == "object" else step_hand_servo
+    ns, out = step(s, p, fingers, command, dt_s)
+    if p.contact_model is None or s.setpoint_prev is None:
+        return ns, out
+    x = measure_hand(s, fingers)
+    models = step_models(s.models, p.contact_model, s.setpoint_prev, x,
+                         max_pressures(fingers, p), dt_s)
+    return replace(ns, models=models), replace(out, contact_model=model_wire(models),
+                                               model_fallbacks=sum(m.fallbacks for m in models))
+
+
+def step_hand_servo(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
+                    command: HandCommand | None,
+                    dt_s: float) -> tuple[HandPortState, HandOutput]:
+    """One hand-side sample of the servo-spring layer: dissipation credit, free-motion refund,
+    quanta, set-position modulation."""
     led = s.ledger
     x, y_prev, d_all = sample_hand_port(s, p, fingers, dt_s)
     contact = finger_contacts(fingers)
@@ -357,4 +418,4 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
                      spring_energy_j=spring_energy_j(y, x, p.servo_stiffness_nm_per_rad,
                                                      p.servo_torque_max_nm))
     return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx,
-                         contact_prev=contact), out
+                         contact_prev=contact, models=s.models), out

@@ -52,13 +52,15 @@ FORCE_UNITS_RANGE = (-4096.0, 4096.0)
 PRESSURE_RANGE = (-1.0e5, 1.0e5)
 TIME_RANGE_S = (0.0, 1.0e10)
 ENERGY_RANGE_J = (0.0, 1.0e12)
+MODEL_STIFFNESS_RANGE = (0.0, 1.0e4)  # N per rad of set-point (trigger force)
+CONTACT_STIFFNESS_RANGE = (0.0, 1.0e6)  # pressure units per rad
 ECHO_RANGE_S = (-1.0, 1.0e10)  # echoed peer timestamp; negative = nothing received yet
 HELD_RANGE_S = (0.0, 1.0e10)  # how long the echoed message had been held
 SEQ_MAX = 2**63 - 1
 
 KINDS: dict[type, int] = {MasterState: 1, ForceCommand: 2, HandCommand: 3, HandState: 4}
 _TYPE_OF_KIND = {v: k for k, v in KINDS.items()}
-_N_FIELDS = {MasterState: 4, ForceCommand: 1, HandCommand: 4, HandState: 4}
+_N_FIELDS = {MasterState: 4, ForceCommand: 2, HandCommand: 4, HandState: 5}
 _HEAD = 5  # kind, version, seq, t_s, energy_total_j
 _FINGER_FIELDS = 6
 
@@ -75,13 +77,14 @@ def _fields(msg: Message) -> list[Any]:
         return [float(msg.grip_position_m), float(msg.grip_velocity_m_s), float(msg.echo_t_s),
                 float(msg.echo_held_s)]
     if isinstance(msg, ForceCommand):
-        return [float(msg.force_n)]
+        return [float(msg.force_n), [float(x) for x in msg.model]]
     if isinstance(msg, HandCommand):
         return [[float(x) for x in msg.finger_setpoint_rad], float(msg.preshape_rad),
                 int(msg.mode), [float(x) for x in msg.finger_force_units]]
     if isinstance(msg, HandState):
         return [[_finger_to_wire(f) for f in msg.fingers], float(msg.preshape_rad),
-                float(msg.echo_t_s), float(msg.echo_held_s)]
+                float(msg.echo_t_s), float(msg.echo_held_s),
+                [float(x) for x in msg.contact_model]]
     raise TypeError(f"encode: not a teleop message: {type(msg).__name__}")
 
 
@@ -156,7 +159,8 @@ def _body(cls: type, h: Header, b: list[Any]) -> Message:
                            _num(b[2], "echo_t_s", *ECHO_RANGE_S),
                            _num(b[3], "echo_held_s", *HELD_RANGE_S))
     if cls is ForceCommand:
-        return ForceCommand(h, _num(b[0], "force_n", *FORCE_RANGE_N))
+        return ForceCommand(h, _num(b[0], "force_n", *FORCE_RANGE_N),
+                            _model(b[1], "model", MODEL_STIFFNESS_RANGE))
     if cls is HandCommand:
         mode = b[2]
         if isinstance(mode, bool) or not isinstance(mode, int):
@@ -171,7 +175,15 @@ def _body(cls: type, h: Header, b: list[Any]) -> Message:
     return HandState(h, tuple(_finger(f, f"fingers[{i}]") for i, f in enumerate(fingers)),  # type: ignore[arg-type]
                      _num(b[1], "preshape_rad", *PRESHAPE_RANGE_RAD),
                      _num(b[2], "echo_t_s", *ECHO_RANGE_S),
-                     _num(b[3], "echo_held_s", *HELD_RANGE_S))
+                     _num(b[3], "echo_held_s", *HELD_RANGE_S),
+                     _model(b[4], "contact_model", CONTACT_STIFFNESS_RANGE))
+
+
+def _model(v: Any, name: str, stiffness: tuple[float, float]) -> tuple[float, ...]:
+    """``(contact_rad, stiffness)`` per finger, flattened; stiffness never negative."""
+    vals = _list(v, name, 2 * N_FINGERS)
+    return tuple(_num(x, f"{name}[{i}]", *(FINGER_ANGLE_RANGE_RAD if i % 2 == 0 else stiffness))
+                 for i, x in enumerate(vals))
 
 
 def _unpack(data: Any) -> Any:

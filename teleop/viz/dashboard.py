@@ -4,6 +4,7 @@ Every function takes an explicit :class:`rerun.RecordingStream`; nothing global.
 services log into one recording (same application and recording id) under::
 
     master/trigger_position_m        master/displayed_force_n     master/tank_j
+    master/model_force_n             controller/measured_force_n  (felt, rendered, true force)
     master/port_in_j, port_out_j     controller/setpoint_rad/f{1,2,3}
     controller/commanded_force_n     controller/energy_stored_j   hand/finger{1,2,3}/proximal_rad
     hand/finger{1,2,3}/distal_rad    hand/tank_j                  hand/port_in_j, port_out_j
@@ -38,6 +39,7 @@ DASHBOARD_PATHS: tuple[str, ...] = (
     "master/port_in_j", "master/port_out_j",
     *(f"controller/setpoint_rad/f{i}" for i in (1, 2, 3)),
     "controller/commanded_force_n", "controller/energy_stored_j",
+    "master/model_force_n", "controller/measured_force_n",
     *(f"hand/finger{i}/{j}" for i in (1, 2, 3) for j in ("proximal_rad", "distal_rad")),
     "hand/tank_j", "hand/port_in_j", "hand/port_out_j",
     *(f"links/{link}/delay_s" for link in LINKS),
@@ -63,9 +65,11 @@ def blueprint() -> rrb.Blueprint:
             rrb.TimeSeriesView(name="trigger position vs finger angles",
                                contents=["+ master/trigger_position_m", *fingers,
                                          "+ controller/setpoint_rad/**"]),
-            rrb.TimeSeriesView(name="commanded vs displayed force",
-                               contents=["+ controller/commanded_force_n",
-                                         "+ master/displayed_force_n"]),
+            rrb.TimeSeriesView(name="felt vs true force (rendered model, delayed command)",
+                               contents=["+ master/displayed_force_n",
+                                         "+ controller/measured_force_n",
+                                         "+ master/model_force_n",
+                                         "+ controller/commanded_force_n"]),
             rrb.TimeSeriesView(name="tanks and energy flows",
                                contents=["+ master/tank_j", "+ hand/tank_j",
                                          "+ master/port_in_j", "+ master/port_out_j",
@@ -131,12 +135,14 @@ def log_rejects(rec: rr.RecordingStream, t_s: float, role: str,
 
 def log_master(rec: rr.RecordingStream, t_s: float, *, trigger_position_m: float,
                displayed_force_n: float, tank_j: float, port_in_j: float, port_out_j: float,
-               delay_s: float | None) -> None:
+               delay_s: float | None, model_force_n: float = math.nan) -> None:
     """The master's signals; ``port_in_j``/``port_out_j`` are the cumulative energy taken
-    from / delivered to the operator; ``delay_s`` is the achieved controller->master delay."""
+    from / delivered to the operator; ``delay_s`` is the achieved controller->master delay;
+    ``model_force_n`` the contact model the master renders locally (felt force)."""
     set_time(rec, t_s)
     _scalar(rec, "master/trigger_position_m", trigger_position_m)
     _scalar(rec, "master/displayed_force_n", displayed_force_n)
+    _scalar(rec, "master/model_force_n", model_force_n)
     _scalar(rec, "master/tank_j", tank_j)
     _scalar(rec, "master/port_in_j", port_in_j)
     _scalar(rec, "master/port_out_j", port_out_j)
@@ -146,12 +152,16 @@ def log_master(rec: rr.RecordingStream, t_s: float, *, trigger_position_m: float
 
 def log_controller(rec: rr.RecordingStream, t_s: float, *, setpoints_rad: Sequence[float],
                    commanded_force_n: float, energy_stored_j: float,
-                   master_delay_s: float | None, hand_delay_s: float | None) -> None:
-    """The controller's signals and the achieved delays of the links into it."""
+                   master_delay_s: float | None, hand_delay_s: float | None,
+                   measured_force_n: float = math.nan) -> None:
+    """The controller's signals and the achieved delays of the links into it;
+    ``measured_force_n``: the hand's pressures through the force map at full gain (the true
+    force the operator should feel)."""
     set_time(rec, t_s)
     for i, sp in enumerate(setpoints_rad, start=1):
         _scalar(rec, f"controller/setpoint_rad/f{i}", sp)
     _scalar(rec, "controller/commanded_force_n", commanded_force_n)
+    _scalar(rec, "controller/measured_force_n", measured_force_n)
     _scalar(rec, "controller/energy_stored_j", energy_stored_j)
     if master_delay_s is not None:
         _scalar(rec, "links/master_to_controller/delay_s", master_delay_s)

@@ -289,7 +289,8 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
             h2c.send(k, HandState(header=Header(seq=k, t_s=t,
                                                 energy_total_j=hand_out.energy_total_j),
                                   fingers=fingers, preshape_rad=0.0,  # type: ignore[arg-type]
-                                  echo_t_s=_echo(last_hc), echo_held_s=t - hc_rx_t))
+                                  echo_t_s=_echo(last_hc), echo_held_s=t - hc_rx_t,
+                                  contact_model=hand_out.contact_model))
         # physics over the next 1 ms with the force and set-points held; a pressed yielding
         # wall first retreats (its spring's energy goes to the table: no work at the port)
         for i in range(3):
@@ -356,13 +357,14 @@ class MasterRigTrace:
 
 
 def run_master_rig(suite: ControllerSuite, p: ControlParams, positions_m: list[float],
-                   force_n: float) -> MasterRigTrace:
+                   force_n: float, model: tuple[float, ...] | None = None) -> MasterRigTrace:
     """The master side alone, its trigger moved along ``positions_m`` (one per 1 ms sample,
     imposed by a stiff operator) while the controller asks for ``force_n`` in commands that
     carry no energy (running total 0).  The operator-port work is the test's own physics:
     the force the master decided at sample ``k-1`` is held while the trigger moves from
-    ``q(k-1)`` to ``q(k)``, so the device does ``-F(k-1) (q(k) - q(k-1))`` on the operator."""
-    from teleop.messages import ForceCommand
+    ``q(k-1)`` to ``q(k)``, so the device does ``-F(k-1) (q(k) - q(k-1))`` on the operator.
+    ``model``: a contact model the commands carry for the master to render (none by default)."""
+    from teleop.messages import NO_MODEL, ForceCommand
 
     ms = suite.init_master(p)
     tr = MasterRigTrace()
@@ -375,7 +377,7 @@ def run_master_rig(suite: ControllerSuite, p: ControlParams, positions_m: list[f
             out_j += max(w, 0.0)
             in_j += max(-w, 0.0)
         cmd = ForceCommand(header=Header(seq=k + 1, t_s=k * DT, energy_total_j=0.0),
-                           force_n=force_n)
+                           force_n=force_n, model=model or NO_MODEL)
         ms, mo = suite.step_master(ms, p, q, cmd, DT)
         force = mo.force_n
         q_prev = q

@@ -63,3 +63,16 @@ def test_a_sensor_reading_low_beyond_the_margin_breaks_the_bound(gain: float) ->
     """The load-bearing assumption: the audit shows energy generated on the yielding object
     (the tank pays for a fraction of the work the fingers really do)."""
     assert audit(replace(PUSH, sensor_gain_factor=gain)) != ""
+
+
+@pytest.mark.parametrize("base", [PUSH, SQUEEZE], ids=["yielding", "fixed"])
+@pytest.mark.parametrize("prior", [20000.0, 20.0], ids=["model-20x-too-stiff", "model-too-soft"])
+def test_a_wrong_contact_model_costs_transparency_not_passivity(base: Scenario,
+                                                                prior: float) -> None:
+    """Model-mediated rendering assumes nothing for the bound: a model far off the object
+    (a prior never replaced by a fit) is rendered, and the audit still holds."""
+    assert P.contact_model is not None
+    wrong = replace(P, contact_model=replace(P.contact_model, prior_stiffness=prior,
+                                             evidence_s=1e6))
+    r = run_loop(SUITE, wrong, base)
+    assert audit_failure(r, initial_tank_j(SUITE, wrong)) == ""

@@ -32,6 +32,7 @@ from teleop.control import two_layer
 from teleop.control.energy_channel import TotalReceiver
 from teleop.control.energy_tank import port_work_j
 from teleop.control.interface import ControlParams, control_params
+from teleop.control.model_render import RenderState, model_force_n
 from teleop.control.passivity_layer import dissipation_lower_bound_j, spring_energy_j
 from teleop.control.registry import CONTROLLERS
 from teleop.transport import bus
@@ -135,6 +136,23 @@ def epoch_credited_on_restart(mp: pytest.MonkeyPatch) -> None:
     mp.setattr(bus, "FIRST_SEQ", 2 ** 62)
 
 
+def model_rendered_outside_tank(mp: pytest.MonkeyPatch) -> None:
+    """The master displays the received contact model in full, after its passivity layer
+    (no phase-in against the tank, no limiter, no guard)."""
+    step = two_layer.step_master
+
+    def step_master(s: Any, p: ControlParams, q: float, command: Any, dt: float) -> Any:
+        ns, out = step(s, p, q, command, dt)
+        if command is None:
+            return ns, out
+        m = command.model
+        full = model_force_n(RenderState(contact_rad=(m[0], m[2], m[4]),
+                                         stiffness_n_per_rad=(m[1], m[3], m[5])), p, q)
+        f = max(out.force_n, full)
+        return replace(ns, force_prev_n=f), replace(out, force_n=f)
+    _replace_suite(mp, step_master=step_master)
+
+
 def refund_in_contact(mp: pytest.MonkeyPatch) -> None:
     """The free-motion refund is paid whatever the tactile cells say (contact ignored)."""
     mp.setattr(two_layer, "finger_contacts", lambda fingers: (False, False, False))
@@ -185,6 +203,7 @@ MUTANTS: dict[str, Mutant] = {
     "setpoint_modulation_skipped": setpoint_modulation_skipped,
     "epoch_credited_on_restart": epoch_credited_on_restart,
     "refund_in_contact": refund_in_contact,
+    "model_rendered_outside_tank": model_rendered_outside_tank,
     "two_sided_damping_credit": two_sided_damping_credit,
     "object_work_sign_flipped": object_work_sign_flipped,
     "object_work_not_charged": object_work_not_charged,
@@ -233,6 +252,27 @@ def master_keeps_reserve_steady(hand_port: str = "object") -> str:
     return _rig_failure(STEADY_RELEASE, 5.0, keep_reserve=True)
 
 
+#: the trigger held deep in contact (20 mm) while a contact model arrives, then opened over 1 s
+DEEP_RELEASE = [0.020] * 300 + [0.020 * (1.0 - k / 1000) for k in range(1001)] + [0.0] * 100
+#: a stiff block: contact at 0.4 rad of set-point (3.3 mm of trigger), 40 N per rad
+BLOCK_MODEL = (0.4, 40.0) * 3
+
+
+def master_passive_rendered(hand_port: str = "object") -> str:
+    """A contact model arrives while the operator is deep in it (its spring would hold ~0.13
+    J, the tank 0.05 J), then the operator opens: what the rendered spring gives back must
+    stay within the tank and what the operator put in."""
+    p = _params(initial_j=0.05)
+    tr = run_master_rig(CONTROLLERS["two-layer"], p, DEEP_RELEASE, 0.0, model=BLOCK_MODEL)
+    worst = min(tr.margin_j(p.initial_j))
+    if worst < -TOL_J:
+        return (f"operator port: margin {worst:.4g} J (delivered {tr.delivered_j[-1]:.4g} J, "
+                f"taken {tr.taken_j[-1]:.4g} J)")
+    if max(tr.force_n) < 1.0:
+        return "the model was never rendered"
+    return ""
+
+
 def master_passive_zigzag(hand_port: str = "object") -> str:
     """The device pushes (8 N) while the trigger reverses every sample: the last velocity
     predicts nothing, only the hard guard keeps the tank from being overdrawn."""
@@ -263,7 +303,11 @@ def lockstep_passive_with_restart(hand_port: str = "object") -> str:
     """Lockstep run of the three services with the simulated operator (repeated grasps) and
     hand, the controller restarted at 1.5 s: the physical audit (``sim.operator`` /
     ``sim.audit``) must show delivered <= initial tanks + taken at every sample."""
-    cfg = load_config(None, [*LOCKSTEP_OVERRIDES, f"controller.ports.hand_port={hand_port}"])
+    # the delayed-force path: with model-mediated rendering the master spends almost none of
+    # what it is sent within the run (it keeps the rendered spring's energy), so a double
+    # credit stays in the tanks (margin 0.2 -> 0.07 J, measured) instead of reaching a port
+    cfg = load_config(None, [*LOCKSTEP_OVERRIDES, f"controller.ports.hand_port={hand_port}",
+                             "controller.contact_model.enabled=false"])
 
     def hook(t_s: float, ctx: LockstepContext) -> None:
         if t_s >= RESTART_AT_S and ctx.controller_restarts == 0:
@@ -322,6 +366,7 @@ CHECKS: dict[str, Callable[[str], str]] = {
     "master_passive_zigzag": master_passive_zigzag,
     "loop_passive_squeeze": loop_passive_squeeze,
     "lockstep_passive_with_restart": lockstep_passive_with_restart,
+    "master_passive_rendered": master_passive_rendered,
     "loop_passive_cycles": loop_passive_cycles,
     "lockstep_passive_grasps": lockstep_passive_grasps,
     "loop_passive_yielding": loop_passive_yielding,
@@ -338,6 +383,7 @@ CAUGHT_BY: dict[str, tuple[str, str]] = {
     "setpoint_modulation_skipped": ("loop_passive_squeeze", "servo"),
     "epoch_credited_on_restart": ("lockstep_passive_with_restart", "servo"),
     "refund_in_contact": ("loop_passive_squeeze", "servo"),
+    "model_rendered_outside_tank": ("master_passive_rendered", "object"),
     "two_sided_damping_credit": ("loop_passive_cycles", "servo"),
     "object_work_sign_flipped": ("loop_passive_squeeze", "object"),
     "object_work_not_charged": ("loop_passive_yielding", "object"),

@@ -1,0 +1,140 @@
+"""Master side of model-mediated rendering: the hand's contact model, rendered at 1 kHz.
+
+The controller forwards each finger's model as ``(contact_rad, k)`` with ``k`` in N of trigger
+force per rad of set-point beyond the contact angle.  The master maps its own trigger closing
+``q`` to set-points with the transparency layer's map ``theta_i(q)`` (the controller's map:
+same parameters) and renders::
+
+    F_model(q) = combine_i k_i max(theta_i(q) - contact_i, 0)  +  b v   (in contact)
+
+a function of ``q`` alone, so (continuous time) lossless: a grasp takes from the operator
+exactly what its release gives back, however long the network delay.  ``b = damping_periods
+* K * dt`` with ``K = max_i k_i G`` the rendered stiffness in N/m (``G`` = set-point rad per
+m of trigger): more than ``K dt / 2`` keeps the sampled spring passive (Colgate and Schenkel,
+1997).
+
+The spring force is clipped at the trigger's ``force_max_n``.  The stored energy of the rendered
+model at ``q`` is ``E(q) = int_0^q F_model``, integrated by trapezoids over the set-point (24
+steps from the first contact angle; every enabled finger has the same set-point, the map is
+linear, ``map_exponent = 1``, and the controller sends no model otherwise).  The master's tank keeps
+``E(q)`` before it sends any quantum on, so it can always pay the release back.
+
+Parameter updates are phased in: the rendered parameters move towards the received ones by
+the fraction ``alpha = a0 * 2^-j`` (``a0 = min(1, force_rate_n_per_s * dt / |F_new(q) -
+F(q)|)``, the smallest ``j <= 6``, else not at all this sample) for which the rendered force
+at the present ``q`` changes by at most ``force_rate_n_per_s * dt`` and
+the stored energy stays within what the tank holds above its minimum (or does not rise): an
+update that raises the stored energy is paid from the master tank, as the tank allows.  A
+finger whose rendered stiffness is 0 takes the new contact angle at once (no force change).
+A model withdrawn (received stiffness 0: the hand saw the object go, or its estimate was
+dropped, or a watchdog cut it: liveliness lost) goes at once, like the force the services'
+watchdogs cut; a watchdog's timeout ramp scales the received stiffness down and is followed
+at the rate limit.
+
+The passivity argument does not depend on any of this: the master's tank pays the exact port
+work of whatever force is displayed (``teleop.control.two_layer``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from teleop.control.interface import ControlParams
+from teleop.control.transparency_layer import combine, grip_to_setpoints
+
+Triple = tuple[float, float, float]
+_ENVELOPE_STEPS = 24
+_ALPHAS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625)
+
+
+@dataclass(frozen=True, slots=True)
+class RenderState:
+    """The model being rendered, per finger, and the share of the received one it has."""
+
+    contact_rad: Triple = (0.0, 0.0, 0.0)
+    stiffness_n_per_rad: Triple = (0.0, 0.0, 0.0)
+    phase: float = 0.0  # rendered / received stiffness summed over fingers (0: no model)
+
+
+def map_gain_rad_per_m(p: ControlParams) -> float:
+    """``G``: set-point rad per m of trigger closing (linear map)."""
+    return abs(p.closed_angle_rad - p.open_angle_rad) / p.trigger_travel_m
+
+
+def finger_forces_n(r: RenderState, p: ControlParams, q_m: float) -> Triple:
+    th = grip_to_setpoints(q_m, p)
+    return tuple(k * max(t - c, 0.0)  # type: ignore[return-value]
+                 for k, t, c in zip(r.stiffness_n_per_rad, th, r.contact_rad, strict=True))
+
+
+def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
+    """The rendered spring force at ``q_m`` (no damping), at most ``force_max_n``."""
+    return min(max(combine(finger_forces_n(r, p, q_m), p), 0.0), p.force_max_n)
+
+
+def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
+    """The stored energy of the rendered model at ``q_m``: ``int_0^q F_model`` (see module)."""
+    th = grip_to_setpoints(q_m, p)
+    on = [i for i in range(3) if p.finger_enable[i] and r.stiffness_n_per_rad[i] > 0.0]
+    if not on:
+        return 0.0
+    t_end, t0 = th[on[0]], min(r.contact_rad[i] for i in on)
+    if t_end <= t0:
+        return 0.0
+    n = _ENVELOPE_STEPS
+    h = (t_end - t0) / n
+    f = [_force_at(r, p, t0 + j * h) for j in range(n + 1)]
+    return h * (sum(f) - 0.5 * (f[0] + f[-1])) / map_gain_rad_per_m(p)
+
+
+def _force_at(r: RenderState, p: ControlParams, theta: float) -> float:
+    """``F_model`` with every enabled finger at set-point ``theta``, clipped at the trigger's
+    largest force."""
+    per = tuple(k * max(theta - c, 0.0) for k, c in zip(r.stiffness_n_per_rad, r.contact_rad,
+                                                         strict=True))
+    return min(max(combine(per, p), 0.0), p.force_max_n)  # type: ignore[arg-type]
+
+
+def in_contact(r: RenderState, p: ControlParams, q_m: float) -> bool:
+    return any(f > 0.0 for f in finger_forces_n(r, p, q_m))
+
+
+def damping_n_s_per_m(r: RenderState, p: ControlParams, periods: float, dt_s: float) -> float:
+    """``b = periods * K * dt``, ``K`` the stiffest finger's rendered stiffness in N/m."""
+    return periods * max(r.stiffness_n_per_rad) * map_gain_rad_per_m(p) * dt_s
+
+
+def _mix(r: RenderState, c_t: Triple, k_t: Triple, a: float) -> RenderState:
+    c = tuple(ci + a * (ct - ci) for ci, ct in zip(r.contact_rad, c_t, strict=True))
+    k = tuple(ki + a * (kt - ki) for ki, kt in zip(r.stiffness_n_per_rad, k_t, strict=True))
+    return RenderState(contact_rad=c, stiffness_n_per_rad=k)  # type: ignore[arg-type]
+
+
+def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m: float,
+                budget_j: float, rate_n_per_s: float, dt_s: float) -> RenderState:
+    """Move the rendered model towards ``model`` (wire form, see module docstring)."""
+    k_t = tuple(max(model[2 * i + 1], 0.0) for i in range(3))
+    # a finger with no received model keeps its contact angle while its stiffness ramps out
+    c_t = tuple(model[2 * i] if k_t[i] > 0.0 else r.contact_rad[i] for i in range(3))
+    # a finger rendering nothing takes the new contact angle at once; a model withdrawn
+    # (stiffness 0: object gone, estimate dropped, a watchdog cut the link) goes at once
+    r0 = RenderState(contact_rad=tuple(c_t[i] if r.stiffness_n_per_rad[i] == 0.0  # type: ignore[arg-type]
+                                       else r.contact_rad[i] for i in range(3)),
+                     stiffness_n_per_rad=tuple(k if k_t[i] > 0.0 else 0.0  # type: ignore[arg-type]
+                                               for i, k in enumerate(r.stiffness_n_per_rad)))
+    f0, e0 = model_force_n(r0, p, q_m), model_energy_j(r0, p, q_m)
+    full = _mix(r0, c_t, k_t, 1.0)  # type: ignore[arg-type]
+    jump = abs(model_force_n(full, p, q_m) - f0)
+    a0 = min(1.0, rate_n_per_s * dt_s / jump) if jump > 0.0 else 1.0
+    new = r0
+    for a in _ALPHAS:
+        cand = _mix(r0, c_t, k_t, a * a0)  # type: ignore[arg-type]
+        e = model_energy_j(cand, p, q_m)
+        if (abs(model_force_n(cand, p, q_m) - f0) <= rate_n_per_s * dt_s * (1.0 + 1e-9)
+                and (e <= budget_j or e <= e0)):
+            new = cand
+            break
+    total = sum(k_t)
+    phase = min(sum(new.stiffness_n_per_rad) / total, 1.0) if total > 0.0 else 0.0
+    return RenderState(contact_rad=new.contact_rad, stiffness_n_per_rad=new.stiffness_n_per_rad,
+                       phase=phase)

@@ -1,0 +1,135 @@
+"""The master's rendering of the contact model: energy of a sampled spring against an
+independently integrated trigger, phase-in limits, and the tank's hold.
+
+The trigger here is integrated in this file (semi-implicit Euler at 20 kHz, the master's force
+held for each 1 ms sample): the energy it exchanges is computed from its own motion, not from
+the controller's ledger."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from teleop.config.control import ControllerConfig
+from teleop.control import two_layer
+from teleop.control.interface import control_params
+from teleop.control.model_render import (
+    RenderState,
+    map_gain_rad_per_m,
+    model_energy_j,
+    model_force_n,
+    step_render,
+)
+from teleop.messages import ForceCommand, Header
+
+P = control_params(ControllerConfig())
+DT = 0.001
+# a stiff block: contact at 0.4 rad of set-point (3.3 mm of trigger), 40 N per rad
+MODEL = (0.4, 40.0, 0.4, 40.0, 0.4, 40.0)
+
+
+def command(model: tuple[float, ...], force_n: float = 0.0, total_j: float = 0.0) -> ForceCommand:
+    return ForceCommand(header=Header(seq=1, t_s=0.0, energy_total_j=total_j), force_n=force_n,
+                        model=model)
+
+
+def operator_cycle(p, n_cycles: int = 5) -> tuple[float, float]:
+    """A mass-spring operator (0.05 kg, 300 N/m towards 12 mm, no damping) squeezing the
+    rendered block for a few cycles; returns (energy the trigger's motion took from the
+    master's force, the master's ledger net port output)."""
+    s = two_layer.init_master(p)
+    q, v, f = 0.0, 0.0, 0.0
+    sub = 20
+    work_on_operator = 0.0
+    for k in range(int(n_cycles * 0.4 / DT)):
+        target = 0.012 if (k * DT) % 0.4 < 0.2 else 0.0
+        for _ in range(sub):
+            a = (300.0 * (target - q) - f) / 0.05
+            v_new = v + a * DT / sub
+            dq = v_new * DT / sub
+            work_on_operator += -f * dq  # the display pushes against closing
+            q += dq
+            v = v_new
+        s, out = two_layer.step_master(s, p, q, command(MODEL), DT)
+        f = out.force_n
+    led = s.ledger
+    return work_on_operator, led.port_out_j - led.port_in_j
+
+
+def test_the_rendered_spring_takes_back_what_it_gives_and_its_damping_keeps_it_passive() -> None:
+    p = replace(P, tlc_gain=0.0)  # no level controller: the rendering alone
+    given, ledger_net = operator_cycle(p)
+    assert given <= 1e-6  # over whole cycles the operator got back no more than he put in
+    assert ledger_net == pytest.approx(given, abs=2e-4)  # the ledger sees the same port work
+    # the mutant: no rendered damping; the sampled spring then gives energy away
+    undamped = replace(p, contact_model=replace(p.contact_model, damping_periods=0.0))
+    given0, _ = operator_cycle(undamped)
+    assert given0 > given
+
+
+def test_a_model_update_is_phased_in_at_the_rate_limit_and_within_the_tank() -> None:
+    q = 0.0045  # 0.54 rad: in contact, 5.6 N
+    r = RenderState()
+    rate = 40.0
+    forces = []
+    for _ in range(400):
+        r = step_render(r, P, MODEL, q, 10.0, rate, DT)
+        forces.append(model_force_n(r, P, q))
+    steps = [b - a for a, b in zip([0.0] + forces, forces, strict=False)]
+    assert max(abs(d) for d in steps) <= rate * DT * (1 + 1e-6)
+    want = min(40.0 * (q * map_gain_rad_per_m(P) - 0.4), P.force_max_n)
+    assert forces[-1] == pytest.approx(want, rel=0.01)
+    assert r.phase == pytest.approx(1.0, abs=0.01)
+    # an empty tank: an update that raises the stored energy waits; one that lowers it does not
+    r0 = RenderState()
+    assert step_render(r0, P, MODEL, q, 0.0, rate, DT).stiffness_n_per_rad == (0.0, 0.0, 0.0)
+    softer = step_render(r, P, (0.4, 10.0) * 3, q, 0.0, rate, DT)
+    assert model_energy_j(softer, P, q) < model_energy_j(r, P, q)
+
+
+def test_out_of_contact_the_model_comes_in_at_once_and_the_fallback_fades_with_it() -> None:
+    r = step_render(RenderState(), P, MODEL, 0.001, 10.0, 40.0, DT)
+    assert r.stiffness_n_per_rad == (40.0, 40.0, 40.0) and r.phase == 1.0
+    s = two_layer.init_master(P)
+    s, out = two_layer.step_master(s, P, 0.001, command(MODEL, force_n=3.0), DT)
+    assert out.force_n == pytest.approx(0.0, abs=1e-9)  # the delayed 3 N is gone with the model
+    s2, out2 = two_layer.step_master(two_layer.init_master(P), P, 0.001,
+                                     command((0.0,) * 6, force_n=3.0), DT)
+    assert out2.force_n == pytest.approx(3.0)  # no model: the delayed force, as before
+
+
+def test_the_master_tank_keeps_the_rendered_energy_before_sending_quanta() -> None:
+    p = replace(P, initial_j=0.3, reserve_j=0.01, transfer_fraction=1.0, tlc_gain=0.0)
+    s = two_layer.init_master(p)
+    q = 0.0
+    for _ in range(3000):  # squeeze into the block and hold
+        q = min(q + 0.00002, 0.010)
+        s, out = two_layer.step_master(s, p, q, command(MODEL), 0.001)
+    held = model_energy_j(s.render, p, q)
+    g = map_gain_rad_per_m(p)
+    # one finger's ramp up to the trigger's 8 N, then flat
+    th, th8 = q * g, 0.4 + p.force_max_n / 40.0
+    assert held == pytest.approx((0.5 * 8.0 * (th8 - 0.4) + 8.0 * (th - th8)) / g, rel=0.01)
+    # what the operator put into the spring is still in the tank, above its reserve
+    assert s.ledger.port_in_j == pytest.approx(held, rel=0.05)
+    assert s.ledger.tank_j >= 0.99 * held + p.reserve_j
+    # so the release is paid without the limiter: the operator gets the spring back
+    for _ in range(600):
+        q = max(q - 0.00002, 0.0)
+        s, out = two_layer.step_master(s, p, q, command(MODEL), 0.001)
+        assert not out.limited
+    assert s.ledger.port_out_j == pytest.approx(s.ledger.port_in_j, rel=0.05)
+
+
+def test_a_withdrawn_model_goes_at_once_and_a_lowered_one_at_the_rate_limit() -> None:
+    q = 0.0045
+    r = RenderState()
+    for _ in range(400):
+        r = step_render(r, P, MODEL, q, 10.0, 40.0, DT)
+    f = model_force_n(r, P, q)
+    assert f > 5.0
+    gone = step_render(r, P, (0.0,) * 6, q, 10.0, 40.0, DT)  # object gone / watchdog cut
+    assert model_force_n(gone, P, q) == 0.0 and gone.phase == 0.0
+    half = step_render(r, P, (0.4, 20.0) * 3, q, 10.0, 40.0, DT)  # a watchdog ramp step
+    assert model_force_n(half, P, q) == pytest.approx(f - 40.0 * DT)
