@@ -182,26 +182,24 @@ def compiled_hand_step(state: HandSimState, cmd: HandMotorCommand, params: HandP
     return run_hand_steps(state, cmd, params, obj, effects, dt_s, 1)
 
 
-def warm_up() -> float:
-    """Compile the kernels, or load them from numba's disk cache; returns the seconds spent."""
+def warm_up(finger: bool = True) -> float:
+    """Compile the hand loop (and with ``finger`` the finger's), or load them from numba's disk
+    cache; returns the seconds spent.  Call before a real-time loop: no step stalls after."""
+    from sim.compiled_runs import run_finger
     from sim.finger import default_finger_params, initial_finger_state
     from sim.hand import default_hand_params, initial_hand_state
 
     t0 = time.perf_counter()
     p = default_finger_params()
-    st = initial_finger_state(p)
-    compiled_finger_step(st, MotorCommand(), p, ContactObject(kind="cylinder"), EffectSet(),
-                         1e-3)
     hp = default_hand_params(p)
     hold = MotorCommand()
     run_hand_steps(initial_hand_state(hp), HandMotorCommand((hold, hold, hold)), hp,
                    ContactObject(kind="cylinder"), EffectSet(), 1e-3, 2,
                    audit=([0.0] * 3, [0.0] * 3))
-    from sim.compiled_runs import run_finger
-
-    x = state_array(st)
-    k, dsegs = pack_params(p)
-    run_finger(x, np.zeros((1, 5)), np.full(1, 1e-3), k, dsegs, pack_object(ContactObject()),
-               pack_effects(EffectSet()), -1.0, np.zeros(2, dtype=np.bool_),
-               np.zeros((0, x.size)))
+    if finger:
+        x = state_array(initial_finger_state(p))
+        k, dsegs = pack_params(p)
+        run_finger(x, np.zeros((1, 5)), np.full(1, 1e-3), k, dsegs,
+                   pack_object(ContactObject()), pack_effects(EffectSet()), -1.0,
+                   np.zeros(2, dtype=np.bool_), np.zeros((0, x.size)))
     return time.perf_counter() - t0
