@@ -138,3 +138,27 @@ def test_bench_loops_follow_the_python_benchmark() -> None:
     finger_loop(1200, x, k_, dsegs, o, e, 1e-3)
     assert st.pads[0] + st.pads[2] > 5.0 and st.prox_rad > 0.1
     assert abs(x[X_PHI] - st.prox_rad) <= TOL_RAD and abs(x[X_TH] - st.motor_rad) <= TOL_RAD
+
+
+@pytest.mark.parametrize("exp", ["force-blocks", "position"])
+def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
+    """``simulate_dynamic`` (the fit's inner loop): delay line, excluded rows and settled
+    restarts, sub-stepping and a coarser step, on both engines."""
+    from dataclasses import replace
+
+    from sim.finger_dynamic import dynamic_data, simulate_dynamic
+
+    p = default_finger_params()
+    rec = run_experiment(ExperimentSpec(exp, duration_s=10.0, rate_hz=1000.0), p,
+                         ContactObject(), EffectSet()).recording
+    data = dynamic_data(rec, "motor_angle_rad")
+    active = np.ones(len(data.t_s), dtype=bool)
+    active[4000:4500] = False
+    cut = replace(data, active=active, restart_goal_rad=np.full(len(data.t_s), 0.5))
+    eff = EffectSet(dead_time=0.03, backlash=0.02, stiction=1.0, sensor_offset=0.01)
+    for d in (data, cut):
+        for dt in (2e-3, 5e-4):
+            a, b = (simulate_dynamic(p, eff, d, dt, e) for e in ENGINES)
+            assert np.array_equal(np.isnan(a), np.isnan(b))
+            assert np.nanmax(np.abs(a - b)) <= TOL_RAD and np.ptp(b[~np.isnan(b)]) > 0.1
+    assert np.isnan(a[4100]) and not np.isnan(a[4600])
