@@ -101,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
                 last_report[0] = now
                 info(args, f"teleop sim {spec.name}: {100.0 * frac:.0f} %")
 
-        result = run_experiment(spec, params, obj, effects, progress=progress)
+        result = run_experiment(spec, params, obj, effects, progress=progress,
+                                engine_name=cfg.hand.sim.engine)
         summary = result.summary
         if spec.name == "weight":
             summary = {k: summary[k] for k in ("force_n", "proximal_angle_rad",
