@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -123,15 +124,16 @@ def _python_run_hand(state: HandSimState, cmd: HandMotorCommand, params: HandPar
     return state
 
 
-def _compiled_engine() -> Engine:
+def _compiled_run_hand(*args: Any, **kwargs: Any) -> HandSimState:
+    """``sim.compiled.run_hand_steps`` (numba imported on first use, not with the engine)."""
     from sim.compiled import run_hand_steps
 
-    return Engine("compiled", _compiled_run_finger, run_hand_steps)
+    return run_hand_steps(*args, **kwargs)
 
 
 _REGISTRY: dict[str, Callable[[], Engine]] = {
     "python": lambda: Engine("python", _python_run_finger, _python_run_hand),
-    "compiled": _compiled_engine,
+    "compiled": lambda: Engine("compiled", _compiled_run_finger, _compiled_run_hand),
 }
 
 

@@ -73,11 +73,27 @@ def zero_delay_stable(p: DirectLoopParams) -> bool:
     return bool(np.all(np.real(char.roots) < 0.0))
 
 
+def _magnitude_minus_one(p: DirectLoopParams, ws: np.ndarray) -> np.ndarray:
+    """``|L(jw)| - 1`` on a grid, vectorised (a service's start-up evaluates 480,000 points);
+    points within 1e-9 of a crossing are evaluated by :func:`loop_gain` itself, so every sign
+    is the scalar one's (numpy's complex division may differ in the last bit)."""
+    s = 1j * ws
+    zm = p.mass_kg * s * s + p.damping_n_s_per_m * s + p.stiffness_n_per_m
+    ps = (p.contact_stiffness_nm_per_rad * p.servo_stiffness_nm_per_rad
+          / (p.servo_damping_nm_s_per_rad * s + p.servo_stiffness_nm_per_rad
+             + p.contact_stiffness_nm_per_rad))
+    filt = 1.0 if p.filter_hz is None else 1.0 / (1.0 + s / (2.0 * math.pi * p.filter_hz))
+    mags = np.abs(p.force_gain_n_per_nm * p.position_gain_rad_per_m * ps * filt / zm) - 1.0
+    for i in np.flatnonzero(np.abs(mags) < 1e-9).tolist():
+        mags[i] = abs(loop_gain(p, float(ws[i]))) - 1.0
+    return mags
+
+
 def crossovers_rad_s(p: DirectLoopParams, w_lo: float = 1e-3,
                      w_hi: float = 1e6) -> list[float]:
     """Frequencies where ``|L(jw)| = 1`` (log grid, bisection refinement)."""
     ws = np.logspace(math.log10(w_lo), math.log10(w_hi), 4000)
-    mags = np.array([abs(loop_gain(p, float(w))) - 1.0 for w in ws])
+    mags = _magnitude_minus_one(p, ws)
     out: list[float] = []
     for i in np.nonzero(np.sign(mags[:-1]) != np.sign(mags[1:]))[0]:
         a, b = float(ws[i]), float(ws[i + 1])
