@@ -27,6 +27,7 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,11 @@ class DirectLoopParams:
 
 def loop_gain(p: DirectLoopParams, w_rad_s: float) -> complex:
     """``L(jw)`` without the delay."""
-    s = 1j * w_rad_s
+    return _gain_at(p, 1j * w_rad_s)
+
+
+def _gain_at(p: DirectLoopParams, s: Any) -> Any:
+    """``L(s)`` for a complex ``s`` or an array of them (numpy's arithmetic)."""
     zm = p.mass_kg * s * s + p.damping_n_s_per_m * s + p.stiffness_n_per_m
     ps = (p.contact_stiffness_nm_per_rad * p.servo_stiffness_nm_per_rad
           / (p.servo_damping_nm_s_per_rad * s + p.servo_stiffness_nm_per_rad
@@ -77,13 +82,7 @@ def _magnitude_minus_one(p: DirectLoopParams, ws: np.ndarray) -> np.ndarray:
     """``|L(jw)| - 1`` on a grid, vectorised (a service's start-up evaluates 480,000 points);
     points within 1e-9 of a crossing are evaluated by :func:`loop_gain` itself, so every sign
     is the scalar one's (numpy's complex division may differ in the last bit)."""
-    s = 1j * ws
-    zm = p.mass_kg * s * s + p.damping_n_s_per_m * s + p.stiffness_n_per_m
-    ps = (p.contact_stiffness_nm_per_rad * p.servo_stiffness_nm_per_rad
-          / (p.servo_damping_nm_s_per_rad * s + p.servo_stiffness_nm_per_rad
-             + p.contact_stiffness_nm_per_rad))
-    filt = 1.0 if p.filter_hz is None else 1.0 / (1.0 + s / (2.0 * math.pi * p.filter_hz))
-    mags = np.abs(p.force_gain_n_per_nm * p.position_gain_rad_per_m * ps * filt / zm) - 1.0
+    mags = np.abs(_gain_at(p, 1j * ws)) - 1.0
     for i in np.flatnonzero(np.abs(mags) < 1e-9).tolist():
         mags[i] = abs(loop_gain(p, float(ws[i]))) - 1.0
     return mags
