@@ -119,7 +119,7 @@ def compiled_finger_step(state: FingerState, cmd: MotorCommand, params: FingerPa
     x = state_array(state)
     k, dsegs = pack_params(params)
     advance(x, np.array(command_row(line[0])), k, dsegs, pack_object(obj),
-            pack_effects(effects), dt_s, fixed_tension_n)
+            pack_effects(effects), float(dt_s), float(fixed_tension_n))
     return state_from_array(x, line)
 
 
@@ -163,9 +163,10 @@ def run_hand_steps(state: HandSimState, cmd: HandMotorCommand, params: HandParam
     objs = np.array([pack_object(o) for o in _objects(obj)])
     k, dsegs = pack_params(fp)
     acc = np.array(audit if audit is not None else ([0.0] * 3, [0.0] * 3), dtype=np.float64)
-    done = run_hand(xs, cs, pre, cmd.preshape_goal_rad, hand_arrays(params), k, dsegs, objs,
-                    pack_effects(effects), dt_s, steps, t_end, audit is not None, acc[0],
-                    acc[1])
+    # plain float/int arguments: one compiled signature, the one warm_up loads
+    done = run_hand(xs, cs, pre, float(cmd.preshape_goal_rad), hand_arrays(params), k, dsegs,
+                    objs, pack_effects(effects), float(dt_s), int(steps), float(t_end),
+                    audit is not None, acc[0], acc[1])
     if done == 0:
         return state
     if audit is not None:

@@ -113,9 +113,9 @@ def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: 
     out = np.full((n, 2), math.nan)
     k, dsegs = cp.pack_params(p)
     simulate_rows(cp.state_array(initial_finger_state(p)), t, _rows(data.commands), nsub,
-                  active, restart, goals is not None, dt_s, int(settle_s / dt_s), k, dsegs,
-                  cp.pack_object(ContactObject(kind="none")), cp.pack_effects(eff),
-                  cp.command_delay(p, eff), out)
+                  active, restart, goals is not None, float(dt_s), int(settle_s / dt_s), k,
+                  dsegs, cp.pack_object(ContactObject(kind="none")), cp.pack_effects(eff),
+                  float(cp.command_delay(p, eff)), out)
     off = eff.sensor_offset
     if data.output == "motor_angle_rad":
         y = (out[:, 0] + off) * data.out_scale

@@ -89,7 +89,7 @@ def _compiled_run_finger(state: FingerState, cmds: Sequence[MotorCommand],
     obj_used = ContactObject() if hung else obj
     run_finger(x, rows_cmd, np.asarray(dts, dtype=np.float64), k, dsegs,
                cp.pack_object(obj_used), cp.pack_effects(effects),
-               max(hung_n, 0.0) if hung else -1.0, rec, out)
+               float(max(hung_n, 0.0)) if hung else -1.0, rec, out)
     where = np.flatnonzero(rec).tolist()
     rows = [cp.state_from_array(out[r], lines[s - 1] if s else state.command)
             for r, s in enumerate(where)]

@@ -7,6 +7,8 @@ energy audit: the compiled engine must stay within 1e-9 rad of the reference eve
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -103,8 +105,7 @@ def test_single_steps_match_with_delay_and_hung_weight() -> None:
 def test_the_comparison_can_fail() -> None:
     """The tolerance sees a physics difference: a 1e-6 change of one constant breaks it."""
     p = default_finger_params()
-    q = type(p)(**{**{f: getattr(p, f) for f in p.__slots__},
-                   "k_tendon_n_per_m": p.k_tendon_n_per_m * (1.0 + 1e-6)})
+    q = replace(p, k_tendon_n_per_m=p.k_tendon_n_per_m * (1.0 + 1e-6))
     obj = ContactObject(kind="cylinder")
     a = b = initial_finger_state(p)
     for _ in range(1500):
@@ -144,8 +145,6 @@ def test_bench_loops_follow_the_python_benchmark() -> None:
 def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
     """``simulate_dynamic`` (the fit's inner loop): delay line, excluded rows and settled
     restarts, sub-stepping and a coarser step, on both engines."""
-    from dataclasses import replace
-
     from sim.finger_dynamic import dynamic_data, simulate_dynamic
 
     p = default_finger_params()
@@ -162,3 +161,21 @@ def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
             assert np.array_equal(np.isnan(a), np.isnan(b))
             assert np.nanmax(np.abs(a - b)) <= TOL_RAD and np.ptp(b[~np.isnan(b)]) > 0.1
     assert np.isnan(a[4100]) and not np.isnan(a[4600])
+
+
+def test_warm_up_loads_the_signature_the_hand_loop_uses() -> None:
+    """No first-call stall: after ``SimHand.start`` the reads compile nothing new, even with
+    integer times and goals (a new argument type would compile a new machine code)."""
+    from sim.compiled_runs import run_hand
+    from sim.sim_hand import SimHand
+    from teleop.config import load_config
+    from teleop.messages import HandCommand, HandMode, Header
+
+    hand = SimHand(load_config(None, ["hand.sim.engine=compiled"]).hand, seed=0)
+    hand.start()
+    before = list(run_hand.signatures)
+    hand.apply(HandCommand(Header(1, 0.0, 0.0), (1, 1, 1), 0, HandMode.POSITION, (0, 0, 0)))
+    hand.read(1)
+    hand.read(1.5)
+    assert hand.state.t_s == pytest.approx(1.5) and before
+    assert list(run_hand.signatures) == before
