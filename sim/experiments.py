@@ -206,16 +206,17 @@ def run_experiment(spec: ExperimentSpec, params: FingerParams, obj: ContactObjec
                                                             for n in effects.active()) or "none"),
                                        ("seed", str(spec.seed)), ("noise", str(spec.noise)),
                                        ("physics_dt_s", str(dt)), ("object", obj.kind)))
-    return ExperimentResult(rec, _summary(spec, rec, params, effects))
+    return ExperimentResult(rec, _summary(spec, rec, params, effects, engine_name))
 
 
 def _summary(spec: ExperimentSpec, rec: Recording, params: FingerParams,
-             effects: EffectSet) -> dict[str, float | str]:
+             effects: EffectSet, engine_name: str) -> dict[str, float | str]:
     last = rec.data[-1]
     col = {c: i for i, c in enumerate(rec.columns)}
     out: dict[str, float | str] = {"experiment": spec.name, "duration_s": float(last[0])}
     if spec.name == "weight":
-        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects)
+        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects,
+                                        engine_name=engine_name)
         out.update({"force_n": spec.force_n, "proximal_angle_rad": prox,
                     "distal_angle_rad": dist})
     elif spec.name == "pull-unloaded":

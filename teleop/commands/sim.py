@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
         raise ExperimentError("grasp needs an object: set hand.sim.object.kind to cylinder "
                               "or block")
     if spec.name == "weight" and args.out is None:
-        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects)
+        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects,
+                                        engine_name=cfg.hand.sim.engine)
         summary: dict[str, float | str] = {"force_n": spec.force_n, "proximal_angle_rad": prox,
                                            "distal_angle_rad": dist}
     else:

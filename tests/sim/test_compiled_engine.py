@@ -179,3 +179,14 @@ def test_warm_up_loads_the_signature_the_hand_loop_uses() -> None:
     hand.read(1.5)
     assert hand.state.t_s == pytest.approx(1.5) and before
     assert list(run_hand.signatures) == before
+
+
+@pytest.mark.parametrize("effects", [EffectSet(), EFFECTS], ids=["nominal", "all-effects"])
+def test_weight_equilibrium_matches_the_reference(effects: EffectSet) -> None:
+    from sim.finger import weight_equilibrium
+
+    p = default_finger_params()
+    for force in (15.7, 9.8, 4.9):
+        a, b = (weight_equilibrium(p, force, effects=effects, engine_name=e) for e in ENGINES)
+        assert abs(a[0] - b[0]) <= TOL_RAD and abs(a[1] - b[1]) <= TOL_RAD
+    assert a[1] > 0.1 and weight_equilibrium(p, 15.7, engine_name="python")[0] > 2.0
