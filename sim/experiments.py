@@ -25,13 +25,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from sim.contact import ContactObject
+from sim.engine import DEFAULT_ENGINE, engine
 from sim.finger import (
     FingerParams,
     FingerState,
     MotorCommand,
     finger_outputs,
-    finger_step,
-    hung_weight_step,
     initial_finger_state,
     weight_equilibrium,
 )
@@ -159,8 +158,10 @@ def _row(t: float, state: FingerState, params: FingerParams, obj: ContactObject,
 
 def run_experiment(spec: ExperimentSpec, params: FingerParams, obj: ContactObject,
                    effects: EffectSet,
-                   progress: Callable[[float], None] | None = None) -> ExperimentResult:
-    """Run ``spec`` on the finger; ``progress(fraction)`` is called about every 10 %."""
+                   progress: Callable[[float], None] | None = None,
+                   engine_name: str = DEFAULT_ENGINE) -> ExperimentResult:
+    """Run ``spec`` on the finger with the physics engine ``engine_name`` (``sim.engine``);
+    ``progress(fraction)`` is called about every 10 %."""
     check_spec(spec)
     duration = spec.duration_s or DEFAULT_DURATION_S[spec.name]
     dt = spec.dt_s
@@ -175,40 +176,47 @@ def run_experiment(spec: ExperimentSpec, params: FingerParams, obj: ContactObjec
         obj = ContactObject(kind="none")  # free-motion experiments: nothing in the way
     state = initial_finger_state(params)
     schedule = None if spec.name == "weight" else _schedule(spec)
-    rows: list[list[float]] = []
+    hold = (MotorCommand("force"), 0.0)
+    plan = [hold] * (steps + 1) if schedule is None else [schedule(k * dt)
+                                                          for k in range(steps + 1)]
+    record = [k % every == 0 for k in range(steps + 1)]
+    eng = engine(engine_name)
+    hung = spec.force_n if schedule is None else -1.0
     report_every = max(1, steps // 10)
-    cmd, setpoint = (MotorCommand("force"), 0.0) if schedule is None else schedule(0.0)
-    for k in range(steps + 1):
-        t = k * dt
-        if schedule is not None:
-            cmd, setpoint = schedule(t)
-        if k % every == 0:
-            rows.append(_row(t, state, params, obj, effects, setpoint, cmd.mode,
-                             cmd.force_units, rng))
-        if k == steps:
-            break
-        if schedule is None:
-            state = hung_weight_step(state, params, spec.force_n, dt, effects)
-        else:
-            state = finger_step(state, cmd, params, obj, effects, dt)
-        if progress is not None and k % report_every == 0 and k:
-            progress(k / steps)
+    states: list[FingerState] = []
+    start = 0
+    while start < steps:  # chunks end after the steps at which progress is reported
+        end = min(steps, -(-max(start, 1) // report_every) * report_every + 1)
+        last = end == steps
+        state, got = eng.run_finger(state, [c for c, _ in plan[start:end]], [dt] * (end - start),
+                                    params, obj, effects, [*record[start:end], last and
+                                                           record[steps]], hung)
+        states.extend(got)
+        if progress is not None and (end - 1) % report_every == 0 and end > 1:
+            progress((end - 1) / steps)
+        start = end
+    if steps == 0:
+        states.append(state)
+    ks = [k for k in range(steps + 1) if record[k]]
+    rows = [_row(k * dt, st, params, obj, effects, plan[k][1], plan[k][0].mode,
+                 plan[k][0].force_units, rng) for k, st in zip(ks, states, strict=True)]
     rec = Recording.from_columns({c: [r[i] for r in rows] for i, c in enumerate(COLUMNS)},
                                  meta=(("experiment", spec.name),
                                        ("effects", ",".join(f"{n}={getattr(effects, n)}"
                                                             for n in effects.active()) or "none"),
                                        ("seed", str(spec.seed)), ("noise", str(spec.noise)),
                                        ("physics_dt_s", str(dt)), ("object", obj.kind)))
-    return ExperimentResult(rec, _summary(spec, rec, params, effects))
+    return ExperimentResult(rec, _summary(spec, rec, params, effects, engine_name))
 
 
 def _summary(spec: ExperimentSpec, rec: Recording, params: FingerParams,
-             effects: EffectSet) -> dict[str, float | str]:
+             effects: EffectSet, engine_name: str) -> dict[str, float | str]:
     last = rec.data[-1]
     col = {c: i for i, c in enumerate(rec.columns)}
     out: dict[str, float | str] = {"experiment": spec.name, "duration_s": float(last[0])}
     if spec.name == "weight":
-        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects)
+        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects,
+                                        engine_name=engine_name)
         out.update({"force_n": spec.force_n, "proximal_angle_rad": prox,
                     "distal_angle_rad": dist})
     elif spec.name == "pull-unloaded":

@@ -365,13 +365,20 @@ def hung_weight_step(state: FingerState, params: FingerParams, force_n: float,
 
 
 def weight_equilibrium(params: FingerParams, force_n: float, *, dt_s: float = 1e-3,
-                       max_time_s: float = 30.0,
-                       effects: EffectSet = NO_EFFECTS) -> tuple[float, float]:
+                       max_time_s: float = 30.0, effects: EffectSet = NO_EFFECTS,
+                       engine_name: str | None = None) -> tuple[float, float]:
     """Static equilibrium (proximal, distal rad) under a weight on the detached tendon.
 
     Found physically: the finger is released from rest and its damped dynamics run until it is
-    still (speeds below 1e-6 rad/s), as the report's weight test (Table 4.2) did.
+    still (speeds below 1e-6 rad/s), as the report's weight test (Table 4.2) did.  The run is
+    the compiled engine's (``sim.compiled_weight``) unless ``engine_name`` is ``"python"``.
     """
+    from sim.engine import DEFAULT_ENGINE, engine
+
+    if engine(engine_name or DEFAULT_ENGINE).name == "compiled":
+        from sim.compiled_weight import compiled_weight_equilibrium
+
+        return compiled_weight_equilibrium(params, force_n, dt_s, max_time_s, effects)
     state = initial_finger_state(params)
     steps = int(max_time_s / dt_s)
     for k in range(steps):

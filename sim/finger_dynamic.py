@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import optimize
 
+from sim.engine import DEFAULT_ENGINE, engine
 from sim.finger import (
     ContactObject,
     FingerState,
@@ -119,9 +120,15 @@ def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObjec
     return state
 
 
-def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float) -> Array:
+def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float,
+                     engine_name: str = DEFAULT_ENGINE) -> Array:
     """Simulated output at every recorded sample, from rest at the first one (NaN on rows
-    that are not simulated; a segment after them restarts settled at the measured angle)."""
+    that are not simulated; a segment after them restarts settled at the measured angle).
+    ``engine_name`` "compiled" runs it in one compiled call (``sim.compiled_dynamic``)."""
+    if engine(engine_name).name == "compiled":
+        from sim.compiled_dynamic import simulate_compiled
+
+        return simulate_compiled(p, eff, data, dt_s, SETTLE_S)
     obj = ContactObject(kind="none")
     state = initial_finger_state(p)
     t = data.t_s
@@ -166,6 +173,7 @@ class FingerDynamicModel:
     data: DynamicData
     tolerance: float = 0.2
     dt_s: float = 2e-3
+    engine_name: str = DEFAULT_ENGINE
 
     def params(self, theta: Array | tuple[float, ...]) -> FingerParams:
         """Finger parameters with the refined ones set."""
@@ -178,7 +186,8 @@ class FingerDynamicModel:
         try:
             for n, v in effects:
                 eff = eff.with_effect(n, v)
-            y = simulate_dynamic(self.params(theta), eff, self.data, self.dt_s)[self.data.keep]
+            y = simulate_dynamic(self.params(theta), eff, self.data, self.dt_s,
+                                 self.engine_name)[self.data.keep]
         except (OverflowError, ZeroDivisionError, ValueError, FloatingPointError):
             return np.full(len(self.data.keep), math.nan)
         return y

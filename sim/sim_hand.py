@@ -22,8 +22,8 @@ from __future__ import annotations
 import random
 from dataclasses import replace
 
-from sim.audit import object_work_j, pad_depths
 from sim.contact import contact_object_from_config
+from sim.engine import engine
 from sim.experiments import MOTOR_COUNT_RAD, PROXIMAL_COUNT_RAD
 from sim.finger import MotorCommand, default_finger_params, finger_outputs
 from sim.hand import (
@@ -32,7 +32,6 @@ from sim.hand import (
     HandSimState,
     default_hand_params,
     hand_outputs,
-    hand_step,
     initial_hand_state,
 )
 from sim.params import JOINT_RATIO
@@ -60,6 +59,7 @@ class SimHand:
         self.state_period_s = 1.0 / cfg.state_rate_hz  # 40 Hz by default, as the driver
         self.state: HandSimState = initial_hand_state(self.params)
         self._rng = random.Random(seed) if cfg.sim.noise else None
+        self._engine = engine(cfg.sim.engine)
         self._travel = cfg.dynamixel.finger_travel_rad
         hold = MotorCommand("position", 0.0)
         self._cmd = HandMotorCommand((hold, hold, hold), 0.0)
@@ -70,7 +70,12 @@ class SimHand:
 
     # --- HandBackend ---------------------------------------------------------------------
     def start(self) -> None:
-        """Ready at once (the simulated hand is calibrated at its rest pose)."""
+        """Ready once the physics is (the simulated hand is calibrated at its rest pose): the
+        compiled engine is compiled or loaded from its disk cache here, before any loop."""
+        if self._engine.name == "compiled":
+            from sim.compiled import warm_up
+
+            warm_up(finger=False)
         self.started = True
 
     def apply(self, command: HandCommand) -> None:
@@ -93,23 +98,10 @@ class SimHand:
 
     def read(self, t_s: float) -> HandReading:
         """Advance the physics to ``t_s`` and read the hand like the stock driver does."""
-        st = self.state
-        dt = self.dt_s
-        audit = self.obj.kind != "none"
-        fp, obj = self.params.finger, self.obj
-        depths = [pad_depths(f, fp, obj) for f in st.fingers] if audit else []
-        while st.t_s + 0.5 * dt <= t_s:
-            st = hand_step(st, self._cmd, self.params, self.obj, self.effects, dt)
-            if audit:
-                for i, f in enumerate(st.fingers):
-                    after = pad_depths(f, fp, obj)
-                    w = object_work_j(depths[i], after, obj, dt)
-                    depths[i] = after
-                    if w > 0.0:
-                        self.env_delivered_j[i] += w
-                    else:
-                        self.env_taken_j[i] -= w
-        self.state = st
+        audit = (self.env_delivered_j, self.env_taken_j) if self.obj.kind != "none" else None
+        steps = max(0, int((t_s - self.state.t_s) / self.dt_s) + 2)  # t_s stops it first
+        self.state = self._engine.run_hand(self.state, self._cmd, self.params, self.obj,
+                                           self.effects, self.dt_s, steps, t_s, audit)
         out = self.truth()
         fingers = tuple(self._finger_message(out, i) for i in range(3))
         return HandReading(t_s=t_s, fingers=(fingers[0], fingers[1], fingers[2]),

@@ -23,6 +23,7 @@ BENCHES: dict[str, str] = {
     "transport": "teleop.transport.bench:bench_transport",
     "sim": "sim.bench:bench_sim",
     "loop": "services.bench:bench_loop",
+    "lockstep": "services.bench_lockstep:bench_lockstep",
     "servo": "sim.servo_emulator_bench:bench_servo",
     "diagnose": "teleop.analysis.bench:bench_diagnose",
 }

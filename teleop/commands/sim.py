@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
         raise ExperimentError("grasp needs an object: set hand.sim.object.kind to cylinder "
                               "or block")
     if spec.name == "weight" and args.out is None:
-        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects)
+        prox, dist = weight_equilibrium(params, spec.force_n, effects=effects,
+                                        engine_name=cfg.hand.sim.engine)
         summary: dict[str, float | str] = {"force_n": spec.force_n, "proximal_angle_rad": prox,
                                            "distal_angle_rad": dist}
     else:
@@ -101,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
                 last_report[0] = now
                 info(args, f"teleop sim {spec.name}: {100.0 * frac:.0f} %")
 
-        result = run_experiment(spec, params, obj, effects, progress=progress)
+        result = run_experiment(spec, params, obj, effects, progress=progress,
+                                engine_name=cfg.hand.sim.engine)
         summary = result.summary
         if spec.name == "weight":
             summary = {k: summary[k] for k in ("force_n", "proximal_angle_rad",

@@ -31,6 +31,9 @@ class SimHandConfig:
                                    hi=100000.0)
     command_delay: bool = param(False, "reproduce the stock driver's 0.09 s command delay")
     noise: bool = param(True, "add sensor noise and quantisation")
+    engine: str = param("compiled", "physics engine: the numba-compiled step, or the Python "
+                        "reference it is held to (within 1e-9 rad)",
+                        choices=("compiled", "python"))
     object: ObjectConfig = section(ObjectConfig, "the grasped object")
 
 

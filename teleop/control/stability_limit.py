@@ -27,6 +27,7 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,11 @@ class DirectLoopParams:
 
 def loop_gain(p: DirectLoopParams, w_rad_s: float) -> complex:
     """``L(jw)`` without the delay."""
-    s = 1j * w_rad_s
+    return _gain_at(p, 1j * w_rad_s)
+
+
+def _gain_at(p: DirectLoopParams, s: Any) -> Any:
+    """``L(s)`` for a complex ``s`` or an array of them (numpy's arithmetic)."""
     zm = p.mass_kg * s * s + p.damping_n_s_per_m * s + p.stiffness_n_per_m
     ps = (p.contact_stiffness_nm_per_rad * p.servo_stiffness_nm_per_rad
           / (p.servo_damping_nm_s_per_rad * s + p.servo_stiffness_nm_per_rad
@@ -73,11 +78,21 @@ def zero_delay_stable(p: DirectLoopParams) -> bool:
     return bool(np.all(np.real(char.roots) < 0.0))
 
 
+def _magnitude_minus_one(p: DirectLoopParams, ws: np.ndarray) -> np.ndarray:
+    """``|L(jw)| - 1`` on a grid, vectorised (a service's start-up evaluates 480,000 points);
+    points within 1e-9 of a crossing are evaluated by :func:`loop_gain` itself, so every sign
+    is the scalar one's (numpy's complex division may differ in the last bit)."""
+    mags = np.abs(_gain_at(p, 1j * ws)) - 1.0
+    for i in np.flatnonzero(np.abs(mags) < 1e-9).tolist():
+        mags[i] = abs(loop_gain(p, float(ws[i]))) - 1.0
+    return mags
+
+
 def crossovers_rad_s(p: DirectLoopParams, w_lo: float = 1e-3,
                      w_hi: float = 1e6) -> list[float]:
     """Frequencies where ``|L(jw)| = 1`` (log grid, bisection refinement)."""
     ws = np.logspace(math.log10(w_lo), math.log10(w_hi), 4000)
-    mags = np.array([abs(loop_gain(p, float(w))) - 1.0 for w in ws])
+    mags = _magnitude_minus_one(p, ws)
     out: list[float] = []
     for i in np.nonzero(np.sign(mags[:-1]) != np.sign(mags[1:]))[0]:
         a, b = float(ws[i]), float(ws[i + 1])

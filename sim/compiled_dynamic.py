@@ -1,0 +1,144 @@
+"""``sim.finger_dynamic.simulate_dynamic`` in one compiled call (the diagnosis's inner loop).
+
+The fit simulates the whole recording for every trial of its parameters, so every recorded
+row (1 kHz) paid the interpreter.  Here the rows' commands, the delay line (``dead_time`` and
+the driver's delay, as ``sim.finger._step`` keeps it), the segments that restart settled after
+an excluded stretch, and the physics all run compiled; the result is the reference's to
+rounding (``tests/sim/test_compiled_engine.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numba import njit
+
+from sim.compiled_kernel import X_PHI, X_T, X_TH
+from sim.compiled_step import advance
+
+if TYPE_CHECKING:
+    from sim.finger_dynamic import DynamicData
+    from sim.motor import MotorCommand
+    from sim.params import FingerParams
+    from teleop.effects import EffectSet
+
+_HOLD = np.array([0.0, 0.0, 0.0, 0.0, 1.0])  # sim.motor.HOLD_ZERO
+
+
+@njit(cache=True)
+def _run(x: np.ndarray, cmd: np.ndarray, steps: int, dt: float, k: np.ndarray,
+         dsegs: np.ndarray, o: np.ndarray, e: np.ndarray, delay: float, line: np.ndarray,
+         due: np.ndarray, queued: np.ndarray, ends: np.ndarray) -> None:
+    """``steps`` steps under ``cmd``.  Delay line: ``line`` = [active (5), last (5), has
+    last]; pending commands ``queued[j]`` due at ``due[j]`` for j in ``ends`` = [head, tail]."""
+    for _ in range(steps):
+        if delay <= 0.0:
+            line[0:5] = cmd
+        else:
+            t = x[X_T]
+            same = line[10] != 0.0
+            for j in range(5):
+                if line[5 + j] != cmd[j]:
+                    same = False
+            if not same:
+                due[ends[1]] = t + delay
+                queued[ends[1], :] = cmd
+                ends[1] += 1
+            while ends[0] < ends[1] and due[ends[0]] <= t + 1e-12:
+                line[0:5] = queued[ends[0]]
+                ends[0] += 1
+        line[5:10] = cmd
+        line[10] = 1.0
+        advance(x, line[0:5], k, dsegs, o, e, dt, -1.0)
+
+
+@njit(cache=True)
+def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndarray,
+                  active: np.ndarray, restart: np.ndarray, has_restart: bool, dt_s: float,
+                  settle_steps: int, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
+                  e: np.ndarray, delay: float, out: np.ndarray) -> None:
+    """Motor and proximal angle (``out[i]``) at every active row, each row's command held for
+    ``nsub[i]`` steps over the span to the next row; after inactive rows a segment restarts
+    from rest settled ``settle_steps`` at the position goal ``restart[i]``."""
+    n_rows = rows.shape[0]
+    cap = int(nsub.sum()) + settle_steps * n_rows + 1
+    due = np.empty(cap)
+    queued = np.empty((cap, 5))
+    x = x0.copy()
+    line = np.zeros(11)
+    line[0:5] = _HOLD
+    ends = np.zeros(2, dtype=np.int64)
+    settle = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
+    was_active = True
+    for i in range(n_rows):
+        if not active[i]:
+            was_active = False
+            continue
+        if not was_active and has_restart:
+            x[:] = x0
+            line[:] = 0.0
+            line[0:5] = _HOLD
+            ends[0] = ends[1]
+            settle[1] = restart[i]
+            _run(x, settle, settle_steps, dt_s, k, dsegs, o, e, delay, line, due, queued, ends)
+            was_active = True
+        out[i, 0] = x[X_TH]
+        out[i, 1] = x[X_PHI]
+        if i + 1 < n_rows:
+            span = t[i + 1] - t[i]
+            _run(x, rows[i], nsub[i], span / nsub[i], k, dsegs, o, e, delay, line, due,
+                 queued, ends)
+
+
+def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float,
+                      settle_s: float) -> np.ndarray:
+    """The arrays of :func:`simulate_rows` from ``sim.finger_dynamic``'s arguments; the
+    output column as ``simulate_dynamic`` returns it (all NaN if the run left the finite
+    numbers, where the Python step raises)."""
+    from sim import compiled as cp
+    from sim.contact import ContactObject
+    from sim.finger import initial_finger_state
+
+    t = np.asarray(data.t_s, dtype=np.float64)
+    n = len(t)
+    nsub = np.ones(n, dtype=np.int64)
+    if n > 1:
+        nsub[:-1] = np.maximum(1, np.round(np.diff(t) / dt_s)).astype(np.int64)
+    active = (np.ones(n, dtype=np.bool_) if data.active is None
+              else np.asarray(data.active, dtype=np.bool_))
+    goals = data.restart_goal_rad
+    restart = np.zeros(n) if goals is None else np.asarray(goals, dtype=np.float64)
+    out = np.full((n, 2), math.nan)
+    k, dsegs = cp.pack_params(p)
+    simulate_rows(cp.state_array(initial_finger_state(p)), t, _rows(data.commands), nsub,
+                  active, restart, goals is not None, float(dt_s), int(settle_s / dt_s), k,
+                  dsegs, cp.pack_object(ContactObject(kind="none")), cp.pack_effects(eff),
+                  float(cp.command_delay(p, eff)), out)
+    off = eff.sensor_offset
+    if data.output == "motor_angle_rad":
+        y = (out[:, 0] + off) * data.out_scale
+    else:
+        y = (out[:, 1] + off) * 1.0
+    y[~active] = math.nan
+    if not np.all(np.isfinite(y[active])):
+        y[:] = math.nan
+    return y
+
+
+_ROWS: dict[int, tuple[tuple[MotorCommand, ...], np.ndarray]] = {}
+
+
+def _rows(commands: tuple[MotorCommand, ...]) -> np.ndarray:
+    """The commands as an (n, 5) array (cached per commands tuple: the fit reuses it)."""
+    from sim.compiled import command_row
+
+    hit = _ROWS.get(id(commands))
+    if hit is not None and hit[0] is commands:
+        return hit[1]
+    arr = np.array([command_row(c) for c in commands], dtype=np.float64).reshape(-1, 5)
+    if len(_ROWS) > 8:
+        _ROWS.clear()
+    _ROWS[id(commands)] = (commands, arr)
+    return arr

@@ -1,0 +1,135 @@
+"""Compiled loops over the compiled finger step (:mod:`sim.compiled_step`).
+
+Python calling the step once per millisecond pays the interpreter on every call; these loops
+run many steps per call: a finger under a command sequence (the experiments, the diagnosis),
+the whole hand between two reads (``SimHand``, with the energy audit of ``sim.audit``), and
+the benchmark's 1 kHz controller (``teleop bench sim``).  Same arithmetic as the Python
+reference, in the same order.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sim.compiled_kernel import K_LD, K_PADSTART, K_PO, K_PROX, K_SEG, X_FLEX, X_PHI, pad_contact
+from sim.compiled_step import advance
+
+
+@njit(cache=True)
+def run_finger(x: np.ndarray, cmds: np.ndarray, dts: np.ndarray, k: np.ndarray,
+               dsegs: np.ndarray, o: np.ndarray, e: np.ndarray, fixed_tension_n: float,
+               record: np.ndarray, out: np.ndarray) -> int:
+    """Step ``x`` in place under ``cmds[s]`` for ``dts[s]``; copy ``x`` into the next row of
+    ``out`` before step ``s`` where ``record[s]`` (``record`` has one more entry: the end).
+    Returns the number of rows written."""
+    r = 0
+    for s in range(cmds.shape[0]):
+        if record[s]:
+            out[r, :] = x
+            r += 1
+        advance(x, cmds[s], k, dsegs, o, e, dts[s], fixed_tension_n)
+    if record[cmds.shape[0]]:
+        out[r, :] = x
+        r += 1
+    return r
+
+
+@njit(cache=True)
+def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray) -> tuple[float, float, float, float]:
+    """``sim.audit.pad_depths`` over the arrays."""
+    if o[0] == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    phi = x[X_PHI]
+    cphi = math.cos(phi)
+    sphi = math.sin(phi)
+    po = k[K_PO]
+    s_p, d_p, _, _, _ = pad_contact(o, cphi, sphi, k[K_PADSTART], po, k[K_PROX], po)
+    n = (x.shape[0] - X_FLEX) // 2
+    px = k[K_PROX]
+    py = 0.0
+    a = 0.0
+    for i in range(n):
+        a += x[X_FLEX + i]
+        px += k[K_SEG] * math.cos(a)
+        py += k[K_SEG] * math.sin(a)
+    ca = math.cos(a)
+    sa = math.sin(a)
+    ax = px - sa * po
+    ay = py + ca * po
+    bx = ax + ca * k[K_LD]
+    by = ay + sa * k[K_LD]
+    s_d, d_d, _, _, _ = pad_contact(o, cphi, sphi, ax, ay, bx, by)
+    return s_p, max(d_p, 0.0), s_d, max(d_d, 0.0)
+
+
+@njit(cache=True)
+def _pad_work(s0: float, d0: float, s1: float, d1: float, o: np.ndarray, dt: float) -> float:
+    if d0 <= 0.0 and d1 <= 0.0:
+        return 0.0
+    kc = o[4]
+    cc = o[5]
+    dd = d1 - d0
+    elastic = 0.5 * (kc * s0 * d0 + kc * s1 * d1)
+    damping = cc * 0.5 * (s0 + s1) * dd / dt if dt > 0.0 else 0.0
+    force = max(elastic + damping, 0.0)
+    return force * dd
+
+
+@njit(cache=True)
+def preshape_step(angle: float, vel: float, goal: float, hp: np.ndarray,
+                  dt: float) -> tuple[float, float]:
+    """``sim.hand.preshape_step``; ``hp`` = (inertia, kp, damping, max torque, lo, hi)."""
+    m, kp, c, tmax, lo, hi = hp[0], hp[1], hp[2], hp[3], hp[4], hp[5]
+    goal = min(max(goal, lo), hi)
+    torque = kp * (goal - angle)
+    if abs(torque) < tmax:
+        vel = (m * vel + dt * torque) / (m + dt * c + dt * dt * kp)
+    else:
+        torque = tmax if torque > 0 else -tmax
+        vel = (m * vel + dt * torque) / (m + dt * c)
+    angle += dt * vel
+    if angle < lo:
+        angle, vel = lo, max(vel, 0.0)
+    elif angle > hi:
+        angle, vel = hi, min(vel, 0.0)
+    return angle, vel
+
+
+@njit(cache=True)
+def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, hp: np.ndarray,
+             k: np.ndarray, dsegs: np.ndarray, objs: np.ndarray, e: np.ndarray, dt: float,
+             steps: int, t_end: float, audit: bool, delivered: np.ndarray,
+             taken: np.ndarray) -> int:
+    """Up to ``steps`` of ``sim.hand.hand_step`` in place, stopping before a step once
+    ``time + dt / 2 > t_end`` (``xs`` one row a finger, ``pre`` = [time, preshape angle,
+    speed]); with ``audit`` the work on the object is added to ``delivered``/``taken`` per
+    finger at every step, as ``SimHand.read`` does.  Returns the steps taken."""
+    nf = xs.shape[0]
+    depths = np.zeros((nf, 4))
+    if audit:
+        for i in range(nf):
+            depths[i, 0], depths[i, 1], depths[i, 2], depths[i, 3] = pad_depths(xs[i], k,
+                                                                                objs[i])
+    done = 0
+    for _ in range(steps):
+        if pre[0] + 0.5 * dt > t_end:
+            break
+        done += 1
+        for i in range(nf):
+            advance(xs[i], cs[i], k, dsegs, objs[i], e, dt, -1.0)
+        pre[1], pre[2] = preshape_step(pre[1], pre[2], pre_goal, hp, dt)
+        pre[0] = pre[0] + dt
+        if audit:
+            for i in range(nf):
+                s_p, d_p, s_d, d_d = pad_depths(xs[i], k, objs[i])
+                w = (_pad_work(depths[i, 0], depths[i, 1], s_p, d_p, objs[i], dt)
+                     + _pad_work(depths[i, 2], depths[i, 3], s_d, d_d, objs[i], dt))
+                depths[i, 0], depths[i, 1], depths[i, 2], depths[i, 3] = s_p, d_p, s_d, d_d
+                if w > 0.0:
+                    delivered[i] += w
+                else:
+                    taken[i] -= w
+    return done
