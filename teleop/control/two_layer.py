@@ -158,6 +158,9 @@ class ControllerStoreState:
     transparency: TransparencyState = field(default_factory=TransparencyState)
     seq: int = 0
     adapt: DelayAdaptState = field(default_factory=DelayAdaptState)
+    #: per finger: ``t_s`` of the first command that carried this touch's contact model to the
+    #: master (nan: no model), for :func:`unseen_touch_cap`
+    model_since: Triple = (math.nan, math.nan, math.nan)
 
 
 def init_controller(p: ControlParams) -> ControllerStoreState:
@@ -195,6 +198,31 @@ def forward_model(p: ControlParams, hand: HandState | None) -> tuple[float, ...]
     return tuple(out)
 
 
+def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
+                     master: MasterState | None, setpoints: Triple,
+                     t_s: float) -> tuple[Triple, Triple]:
+    """Model-mediated rendering: a finger's new touch is not squeezed deeper than the master
+    can have displayed.  Until the master echoes a command that carried the touch's model
+    (``MasterState.echo_t_s >= since``), the finger's set-point is capped where the model
+    renders the trigger's largest force, ``contact + force_max_n / k``: at zero delay the
+    echo comes back within a few ms; under delay the operator, who closed on nothing he
+    could feel, does not drive the hand through the object meanwhile.  Returns (``since``,
+    set-points)."""
+    echo = master.echo_t_s if master is not None else -1.0
+    new_since, out = [], []
+    for i in range(3):
+        c, k = model[2 * i], model[2 * i + 1]
+        if k <= 0.0:
+            new_since.append(math.nan)
+            out.append(setpoints[i])
+            continue
+        t0 = since[i] if math.isfinite(since[i]) else t_s
+        new_since.append(t0)
+        seen = echo >= t0
+        out.append(setpoints[i] if seen else min(setpoints[i], c + p.force_max_n / k))
+    return tuple(new_since), tuple(out)  # type: ignore[return-value]
+
+
 def make_commands(p: ControlParams, seq: int, t_s: float, force_n: float, to_master_j: float,
                   setpoints: Triple, to_hand_j: float,
                   model: tuple[float, ...] = NO_MODEL) -> tuple[ForceCommand, HandCommand]:
@@ -228,9 +256,12 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s, adapt.gain)
     seq = s.seq + 1
     sent_m, sent_h = s.sent_to_master_j + to_m, s.sent_to_hand_j + to_h
-    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h, forward_model(p, hand))
+    model = forward_model(p, hand)
+    since, sp = unseen_touch_cap(s.model_since, p, model, master, sp, t_s)
+    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h, model)
     ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
-                              sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt)
+                              sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt,
+                              model_since=since)
     return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=led,
                                 max_pressure=mp, force_desired_n=raw, force_gain=adapt.gain,
                                 round_trip_s=adapt.round_trip_s)
