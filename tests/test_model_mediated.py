@@ -14,7 +14,9 @@ import pytest
 
 from services.lockstep import LockstepContext, run_lockstep
 from sim.contact import NO_OBJECT
+from teleop.analysis.grasps import format_grasps
 from teleop.analysis.stability import felt_true_force_ratio
+from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.analysis.sweep_objects import with_object
 from teleop.analysis.sweep_signals import signals_from_lockstep
 from teleop.config import load_config
@@ -91,3 +93,20 @@ def test_an_object_moved_mid_grasp_is_re_measured() -> None:
     felt = r.displayed_force_n[late]
     assert float(np.mean(true)) > 2.0  # still grasping
     assert float(np.mean(felt) / np.mean(true)) == pytest.approx(1.0, abs=0.2)
+
+
+@pytest.mark.parametrize("delay_s", [0.2, 1.0])
+def test_repeated_grasps_under_delay_and_loss_all_hold_up_against_the_first(
+        delay_s: float) -> None:
+    """The virtual operator's repeated grasps (goal 1 of issue 13, short): with 20 % loss on
+    both links every grasp reaches 90 % of the first's peak pressure and closure; the first
+    no longer overshoots (the touch is capped until the master has seen its model)."""
+    cfg = load_config(None, [f"links.master_controller.delay_s={delay_s}",
+                             "links.master_controller.loss=0.2", "links.controller_hand.loss=0.2"])
+    r = run_lockstep(cfg, 40.0, seed=2)
+    g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
+                            r.displayed_force_n, cfg)
+    assert len(g.grasps) >= 7
+    assert g.min_pressure_ratio >= 0.9, format_grasps(g)
+    assert g.min_closure_ratio >= 0.9, format_grasps(g)
+    assert g.grasps[0].peak_pressure < 1000  # not the 1,600-3,000 overshoot of before

@@ -7,6 +7,7 @@ the controller's ledger."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import pytest
@@ -133,3 +134,29 @@ def test_a_withdrawn_model_goes_at_once_and_a_lowered_one_at_the_rate_limit() ->
     assert model_force_n(gone, P, q) == 0.0 and gone.phase == 0.0
     half = step_render(r, P, (0.4, 20.0) * 3, q, 10.0, 40.0, DT)  # a watchdog ramp step
     assert model_force_n(half, P, q) == pytest.approx(f - 40.0 * DT)
+
+
+def test_a_new_touch_is_capped_until_the_master_has_seen_its_model() -> None:
+    from teleop.messages import MasterState
+
+    def master(echo_t_s: float) -> MasterState:
+        return MasterState(header=Header(seq=1, t_s=0.0, energy_total_j=0.0),
+                           grip_position_m=0.02, grip_velocity_m_s=0.0, echo_t_s=echo_t_s)
+
+    sp = (2.0, 2.0, 0.1)
+    model = (0.4, 40.0, 0.4, 40.0, 0.0, 0.0)  # fingers 1, 2 touching; finger 3 not
+    cap = 0.4 + P.force_max_n / 40.0
+    since, out = two_layer.unseen_touch_cap((math.nan,) * 3, P, model, master(-1.0), sp, 5.0)
+    assert since[:2] == (5.0, 5.0) and math.isnan(since[2])
+    assert out == (cap, cap, 0.1)
+    # later, the master still echoes a command from before the model: still capped
+    since, out = two_layer.unseen_touch_cap(since, P, model, master(4.99), sp, 5.4)
+    assert since[:2] == (5.0, 5.0) and out[:2] == (cap, cap)
+    # it echoes the command that carried the model: the operator decides again
+    since, out = two_layer.unseen_touch_cap(since, P, model, master(5.0), sp, 5.5)
+    assert out == sp
+    # the touch ends (model withdrawn) and a new one starts: capped again until seen
+    since, _ = two_layer.unseen_touch_cap(since, P, (0.0,) * 6, master(5.5), sp, 6.0)
+    assert all(math.isnan(v) for v in since)
+    since, out = two_layer.unseen_touch_cap(since, P, model, master(6.0), sp, 6.1)
+    assert out[:2] == (cap, cap)
