@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from teleop.analysis import candidates as cand
+from teleop.analysis import library
 from teleop.analysis.axis_model import Array
 from teleop.analysis.equation_error import (
     EEFit,
@@ -28,16 +29,17 @@ from teleop.analysis.equation_error import (
 )
 from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, simulate
 from teleop.analysis.model import AxisNominal
+from teleop.analysis.propose import select_with_library
 from teleop.analysis.residual import analyse_residual, noise_std
 from teleop.analysis.results import (
     DiagnoseOptions,
     Diagnosis,
     EffectResult,
+    ProposedTerm,
     Traces,
     Validation,
     nrmse,
 )
-from teleop.analysis.select import select_oe
 from teleop.analysis.select_ee import select_ee
 from teleop.analysis.windows import conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
@@ -182,9 +184,10 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         start_i += len(s_.t)
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
+    proposed: tuple[ProposedTerm, ...] = ()   # library terms (output-error only)
     if mode == "output-error":
-        final, chosen, ranking = select_oe(data, nominal, nom_fit, opts, names, sig,
-                                            fixed_inertia, noise)
+        final, chosen, ranking, proposed = select_with_library(
+            data, nominal, nom_fit, opts, names, sig, fixed_inertia, noise)
         r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
         before, after = nom_nrmse, nrmse(data.y, final.y_fit)
         p_nom, e_nom = build(nom_fit.names, nom_fit.theta, data)
@@ -230,8 +233,10 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     if validate is not None:
         val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
                else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia))
+    units = (library.units(opts.input_col, "effort units"),
+             library.units(opts.output_col, "position units"))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
-                     windows, stats_b, stats_a, before, after, val, traces)
+                     windows, stats_b, stats_a, before, after, val, traces, proposed, units)
 
 
 def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,
