@@ -31,6 +31,9 @@ class SimHandConfig:
                                    hi=100000.0)
     command_delay: bool = param(False, "reproduce the stock driver's 0.09 s command delay")
     noise: bool = param(True, "add sensor noise and quantisation")
+    model: str = param("", "finger model file written by teleop diagnose --write-params "
+                       "(TOML: refined finger parameters and effects); empty: the calibrated "
+                       "finger")
     object: ObjectConfig = section(ObjectConfig, "the grasped object")
 
 
