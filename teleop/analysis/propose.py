@@ -8,11 +8,12 @@ When the output-error residual after the catalog effects stays above the noise:
    (wavenumber, delay) is represented by its best constant on a grid;
 2. **sequentially thresholded least squares** (STLSQ) keeps the terms whose share of the
    residual is at least ``STLSQ_SHARE`` (columns standardised; refitted after every cut);
-3. each surviving term (a sin/cos pair is one term) is added to the **simulation** and accepted
-   only by the one selection rule (:mod:`teleop.analysis.criterion`: score, a scanned constant
-   counting as one more parameter, and held-out gain);
-4. with terms accepted, every catalog effect is checked again against the model with the terms
-   (removed when it no longer earns its score): a catalog effect that was only standing in for
+3. each surviving term (a sin/cos pair is one term) is added to the nominal **simulation**
+   (coefficients, and a pair's wavenumber, fitted by output error) and accepted only by the one
+   selection rule (:mod:`teleop.analysis.criterion`: score, a scanned constant counting as one
+   more parameter, and held-out gain);
+4. with terms accepted, the catalog effects are selected again on top of nominal + terms (not at
+   all when these leave only noise): a catalog effect that was only standing in for
    out-of-catalog physics is not named.
 """
 
@@ -130,9 +131,8 @@ def propose(data: FitData, nominal: AxisNominal, nom: ModelFit, final: ModelFit,
             ) -> tuple[ModelFit, tuple[ProposedTerm, ...]]:
     """Library terms for the force-domain residual of ``final`` (the model with the chosen
     catalog effects), each judged by the rule against the nominal model ``nom`` with the terms
-    accepted before it; returns that model and the terms.  The caller
-    selects the catalog effects again on top of it, so an effect that was only standing in for
-    out-of-catalog physics is not named."""
+    accepted before it; returns that model and the terms (``final`` and none when nothing
+    passes)."""
     p, eff = build(final.names, final.theta, data)
     e = model_equation_error(sig, p, eff)    # J a - modelled efforts: the effort it lacks
     current = nom
