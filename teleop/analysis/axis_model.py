@@ -60,11 +60,12 @@ class AxisParams:
         return replace(self, **values)
 
 
-def delayed(t: Array, u: Array, delay_s: float) -> Array:
-    """``u(t - delay)`` (a negative delay is a lead), holding the end values beyond the record."""
+def delayed(t: Array, u: Array, delay_s: float, before: float | None = None) -> Array:
+    """``u(t - delay)`` (a negative delay is a lead); before the record the input is ``before``
+    (default: the first sample held), after it the last sample is held."""
     if delay_s == 0.0:
         return u
-    return np.interp(t - delay_s, t, u, left=u[0], right=u[-1])
+    return np.interp(t - delay_s, t, u, left=u[0] if before is None else before, right=u[-1])
 
 
 def lagged(t: Array, f: Array, tau_s: float) -> Array:
@@ -102,15 +103,17 @@ def play(x: Array, width: float) -> Array:
     return out
 
 
-def input_effort(t: Array, u: Array, eff: EffectSet, shift_s: float = 0.0) -> Array:
+def input_effort(t: Array, u: Array, eff: EffectSet, shift_s: float = 0.0,
+                 before: float | None = None) -> Array:
     """The actuator effort before the series spring: delay, saturation, gain and lag applied.
 
     ``shift_s`` is the input's sample alignment, a nominal nuisance within one sample period
     (signed): a recording does not say whether an input sample is held until the next one
     (zero-order hold) or passes through a continuous signal, nor whether it was logged at the
     start or end of its period; a half-sample mismatch alone moves a fast axis by more than
-    the noise.  ``dead_time`` is a delay beyond that alignment."""
-    f = delayed(t, u, eff.dead_time + shift_s)
+    the noise.  ``dead_time`` is a delay beyond that alignment; with a delay, the input before
+    the record (``before``; default: the first sample held) acts at the start."""
+    f = delayed(t, u, eff.dead_time + shift_s, before)
     if math.isfinite(eff.actuator_saturation):
         f = np.clip(f, -eff.actuator_saturation, eff.actuator_saturation)
     if eff.actuator_gain != 1.0:
@@ -147,16 +150,18 @@ def _transition(J: float, b: float, k: float, dt: float) -> tuple[float, ...]:
 
 
 def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = EffectSet(),
-                  x0: float = 0.0, v0: float = 0.0, max_dt_s: float = 1e-3) -> Array:
+                  x0: float = 0.0, v0: float = 0.0, max_dt_s: float = 1e-3,
+                  u_before: float | None = None) -> Array:
     """Sensed position at the sample times ``t`` (no noise), from ``x(t0)=x0, x'(t0)=v0``.
 
     The linear part (inertia, viscous, stiffness) is integrated exactly over each sub-step; the
     other efforts (input, gravity, cubic spring, friction, series spring) are held over it.
+    ``u_before``: the input before the record (acts through a delay; default the first sample).
     A diverging simulation returns NaN from the point it blew up.
     """
     n = len(t)
     f_in = np.zeros(n) if u is None else input_effort(t, np.asarray(u, float), eff,
-                                                                p.input_shift_s)
+                                                                p.input_shift_s, u_before)
     coefs = dict(p.terms)
     extra = library.state_effort(coefs)
     if u is not None:

@@ -27,7 +27,7 @@ from teleop.analysis.equation_error import (
     ee_signals,
     model_equation_error,
 )
-from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, simulate
+from teleop.analysis.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.propose import select_with_library
 from teleop.analysis.residual import analyse_residual, noise_std
@@ -195,9 +195,9 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         ee_nom = model_equation_error(sig, p_nom, e_nom)
         ee_fin = model_equation_error(sig, p_fin, e_fin)
         nominal_params = tuple((k, v) for k, v in nom_fit.as_dict().items()
-                               if not k.startswith(("x0_", "v0_")))
+                               if not k.startswith(("x0_", "v0_", BEFORE)))
         final_params = tuple((k, v) for k, v in final.as_dict().items()
-                             if not k.startswith(("x0_", "v0_")))
+                             if not k.startswith(("x0_", "v0_", BEFORE)))
         traces = Traces(t_all, data.y, nom_fit.y_fit, final.y_fit, r_after)
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
@@ -251,7 +251,8 @@ def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFi
     x0, v0 = initial_state(t, y)
     out = []
     for f in (nom, final):
-        start = {**{k: v for k, v in f.as_dict().items() if not k.startswith(("x0_", "v0_"))},
+        start = {**{k: v for k, v in f.as_dict().items()
+                    if not k.startswith(("x0_", "v0_", BEFORE))},
                  "x0_0": x0, "v0_0": v0}
         out.append(nrmse(seg.y, _fit_state_only(vdata, start)))
     return Validation(out[0], out[1])

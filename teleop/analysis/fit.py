@@ -23,6 +23,8 @@ from teleop.effects import EffectSet
 
 #: Nominal parameter: the input's sample alignment in s (``axis_model.input_effort``).
 SHIFT = "input_shift"
+#: With a dead time, the input before segment ``i``'s record is unknown: ``u_before_i``.
+BEFORE = "u_before_"
 
 NUMERIC_FAILURES = (OverflowError, ZeroDivisionError, ValueError, FloatingPointError,
                     np.linalg.LinAlgError)
@@ -132,7 +134,8 @@ def simulate(names: tuple[str, ...], theta: Array | tuple[float, ...], data: Fit
     p, eff = build(names, theta, data)
     vals = dict(zip(names, (float(v) for v in theta), strict=True))
     try:
-        out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s)
+        out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s,
+                             vals.get(f"{BEFORE}{i}"))
                for i, s in enumerate(data.segments)]
     except NUMERIC_FAILURES:
         # a parameter vector the simulation cannot integrate is as bad as a divergent one
@@ -149,6 +152,8 @@ def _bounds(name: str, nominal: AxisNominal, data: FitData) -> tuple[float, floa
         return 0.002 * data.scales.velocity, 0.5 * data.scales.velocity
     if name == SHIFT:
         return -data.scales.dt_s, data.scales.dt_s
+    if name.startswith(BEFORE):
+        return -1.5 * data.scales.umax, 1.5 * data.scales.umax
     if name.startswith(library.PREFIX):
         return -math.inf, math.inf
     if name.startswith(library.WAVE):
@@ -171,6 +176,8 @@ def _scale(name: str, start: float, data: FitData) -> float:
         return 1.0
     if name == SHIFT:
         return 0.5 * s.dt_s
+    if name.startswith(BEFORE):
+        return max(s.effort, 1e-12)
     if name.startswith(library.WAVE):
         return 0.01 * start
     return max(abs(start), 1e-6 * s.effort, 1e-12)
@@ -198,8 +205,12 @@ def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
     names = tuple(free_terms(nominal, data.has_input)) + tuple(
         f"effect:{e}" for e in effects) + (("stribeck_velocity",) if "stiction" in effects
                                            else ()) + tuple(
-        k for k in start if k.startswith((library.PREFIX, library.WAVE))) + data.state_names()
-    defaults = {"stribeck_velocity": data.stribeck_velocity}
+        k for k in start if k.startswith((library.PREFIX, library.WAVE))) + data.state_names() + (
+        tuple(f"{BEFORE}{i}" for i in range(len(data.segments))) if "dead_time" in effects
+        else ())
+    defaults = {"stribeck_velocity": data.stribeck_velocity,
+                **{f"{BEFORE}{i}": float(sg.u[0]) for i, sg in enumerate(data.segments)
+                   if sg.u is not None}}
     x_start = np.array([start.get(n, defaults.get(n, 0.0)) for n in names], float)
     lo = np.array([_bounds(n, nominal, data)[0] for n in names])
     hi = np.array([_bounds(n, nominal, data)[1] for n in names])

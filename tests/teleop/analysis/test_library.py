@@ -66,3 +66,15 @@ def test_the_equation_carries_units_from_the_column_names() -> None:
     assert "0.5 [N m] * sin(25 rad^-1 * x)" in eq
     assert "[N m s^2/rad^2] * v*|v|" in eq
     assert units("whatever", "effort units") == "effort units"
+
+
+def test_with_a_delay_the_input_before_the_record_is_a_parameter_not_the_first_sample() -> None:
+    t = np.arange(0, 1, 0.001)
+    u = 10 + 5 * np.sin(2 * math.pi * 2.0 * t)      # starts far from zero
+    p = AxisParams(1.0, 1.0, 50.0)
+    switched_on = np.interp(t - 0.05, t, u, left=0.0)  # nothing acted before t = 0
+    held = np.interp(t - 0.05, t, u, left=u[0])
+    eff = EffectSet(dead_time=0.05)
+    assert np.max(np.abs(simulate_axis(t, u, p, eff, u_before=0.0)
+                         - simulate_axis(t, switched_on, p))) < 1e-12
+    assert np.max(np.abs(simulate_axis(t, u, p, eff) - simulate_axis(t, held, p))) < 1e-12
