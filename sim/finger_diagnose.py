@@ -26,6 +26,7 @@ from sim.finger_dynamic import (
 )
 from sim.finger_dynamic import PARAMS as PARAMS_DYN
 from sim.finger_hand_rec import hand_finger_data, is_hand_recording
+from sim.finger_model_file import write_model
 from sim.finger_select import DynamicDiagnosis, diagnose_dynamic, print_progress
 from sim.params import FingerParams, default_finger_params
 from teleop.analysis.ambiguity import ambiguous
@@ -170,6 +171,12 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
     quiet = getattr(args, "json_path", None) is not None and str(args.json_path) == "-"
     d = diagnose_dynamic(model, progress=None if quiet else print_progress)
     lines, doc = _dynamic_report(d, what, data, model.dt_s)
+    out = getattr(args, "write_params", None)
+    if out is not None:
+        write_model(out, dict(zip(PARAMS_DYN, d.final.theta, strict=True)),
+                    dict(d.final.effects), str(rec.source))
+        lines.append(f"wrote the refined finger and its effects to {out} (load with --set "
+                     f"hand.sim.model={out})")
     info(args, "\n".join(lines))
     write_json(args.json_path, doc)
     return 0
@@ -232,6 +239,13 @@ def diagnose_finger(args: argparse.Namespace) -> int:
     lines.append(f"fit NRMSE: before {d.nrmse_before:.4g}, after {d.nrmse_after:.4g}")
     if getattr(args, "plot", None) is not None:
         lines.append("plot: not produced for --model finger (static points; see the table)")
+    out = getattr(args, "write_params", None)
+    if out is not None:
+        fin = dict(d.final_params)
+        write_model(out, {k: fin[k] for k in PARAMS if k in fin},
+                    {e.name: e.params[0][1] for e in d.effects}, str(args.recordings[0]))
+        lines.append(f"wrote the refined finger and its effects to {out} (load with --set "
+                     f"hand.sim.model={out})")
     info(args, "\n".join(lines))
     write_json(args.json_path, {
         "model": "finger", "analysis": "output-error",

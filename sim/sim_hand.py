@@ -49,6 +49,11 @@ class SimHand:
 
     def __init__(self, cfg: HandConfig, seed: int = 0, effects: EffectSet | None = None) -> None:
         fp = default_finger_params()
+        if cfg.sim.model:  # refined by teleop diagnose --write-params
+            from sim.finger_model_file import load_model
+
+            fp, found = load_model(cfg.sim.model, fp)
+            effects = effects or found
         if cfg.sim.command_delay:
             fp = replace(fp, command_delay_s=0.09)
         self.cfg = cfg

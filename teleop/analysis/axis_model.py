@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from teleop.analysis import library
 from teleop.effects import EffectSet
 
 Array = NDArray[np.float64]
@@ -51,17 +52,20 @@ class AxisParams:
     coulomb: float = 0.0
     offset: float = 0.0
     stribeck_velocity: float = 0.1
+    input_shift_s: float = 0.0   # sample alignment of the input (see ``input_effort``)
+    terms: tuple[tuple[str, float], ...] = ()   # library terms (``library.py``): key, coef
 
     def with_terms(self, values: dict[str, float]) -> AxisParams:
         """A copy with some terms replaced."""
         return replace(self, **values)
 
 
-def delayed(t: Array, u: Array, delay_s: float) -> Array:
-    """``u(t - delay)``, holding the first value before the start."""
-    if delay_s <= 0.0:
+def delayed(t: Array, u: Array, delay_s: float, before: float | None = None) -> Array:
+    """``u(t - delay)`` (a negative delay is a lead); before the record the input is ``before``
+    (default: the first sample held), after it the last sample is held."""
+    if delay_s == 0.0:
         return u
-    return np.interp(t - delay_s, t, u, left=u[0])
+    return np.interp(t - delay_s, t, u, left=u[0] if before is None else before, right=u[-1])
 
 
 def lagged(t: Array, f: Array, tau_s: float) -> Array:
@@ -99,9 +103,17 @@ def play(x: Array, width: float) -> Array:
     return out
 
 
-def input_effort(t: Array, u: Array, eff: EffectSet) -> Array:
-    """The actuator effort before the series spring: delay, saturation, gain and lag applied."""
-    f = delayed(t, u, eff.dead_time)
+def input_effort(t: Array, u: Array, eff: EffectSet, shift_s: float = 0.0,
+                 before: float | None = None) -> Array:
+    """The actuator effort before the series spring: delay, saturation, gain and lag applied.
+
+    ``shift_s`` is the input's sample alignment, a nominal nuisance within one sample period
+    (signed): a recording does not say whether an input sample is held until the next one
+    (zero-order hold) or passes through a continuous signal, nor whether it was logged at the
+    start or end of its period; a half-sample mismatch alone moves a fast axis by more than
+    the noise.  ``dead_time`` is a delay beyond that alignment; with a delay, the input before
+    the record (``before``; default: the first sample held) acts at the start."""
+    f = delayed(t, u, eff.dead_time + shift_s, before)
     if math.isfinite(eff.actuator_saturation):
         f = np.clip(f, -eff.actuator_saturation, eff.actuator_saturation)
     if eff.actuator_gain != 1.0:
@@ -138,15 +150,23 @@ def _transition(J: float, b: float, k: float, dt: float) -> tuple[float, ...]:
 
 
 def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = EffectSet(),
-                  x0: float = 0.0, v0: float = 0.0, max_dt_s: float = 1e-3) -> Array:
+                  x0: float = 0.0, v0: float = 0.0, max_dt_s: float = 1e-3,
+                  u_before: float | None = None) -> Array:
     """Sensed position at the sample times ``t`` (no noise), from ``x(t0)=x0, x'(t0)=v0``.
 
     The linear part (inertia, viscous, stiffness) is integrated exactly over each sub-step; the
     other efforts (input, gravity, cubic spring, friction, series spring) are held over it.
+    ``u_before``: the input before the record (acts through a delay; default the first sample).
     A diverging simulation returns NaN from the point it blew up.
     """
     n = len(t)
-    f_in = np.zeros(n) if u is None else input_effort(t, np.asarray(u, float), eff)
+    f_in = np.zeros(n) if u is None else input_effort(t, np.asarray(u, float), eff,
+                                                                p.input_shift_s, u_before)
+    coefs = dict(p.terms)
+    extra = library.state_effort(coefs)
+    if u is not None:
+        for d, c in library.input_terms(coefs):
+            f_in = f_in + c * delayed(t, np.asarray(u, float), d + p.input_shift_s)
     out = np.empty(n)
     J = p.inertia
     b, k, f0 = p.viscous, p.stiffness, p.offset
@@ -204,6 +224,8 @@ def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = Eff
             else:
                 force = fi
             force += f0
+            if extra is not None:
+                force += extra(x, v)
             if g != 0.0:
                 force -= g * sin(x)
             if k3 != 0.0:

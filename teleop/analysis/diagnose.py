@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from teleop.analysis import candidates as cand
+from teleop.analysis import library
 from teleop.analysis.axis_model import Array
 from teleop.analysis.equation_error import (
     EEFit,
@@ -26,18 +27,19 @@ from teleop.analysis.equation_error import (
     ee_signals,
     model_equation_error,
 )
-from teleop.analysis.fit import FitData, ModelFit, Segment, build, fit_model, simulate
+from teleop.analysis.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
 from teleop.analysis.model import AxisNominal
+from teleop.analysis.propose import select_with_library
 from teleop.analysis.residual import analyse_residual, noise_std
 from teleop.analysis.results import (
     DiagnoseOptions,
     Diagnosis,
     EffectResult,
+    ProposedTerm,
     Traces,
     Validation,
     nrmse,
 )
-from teleop.analysis.select import select_oe
 from teleop.analysis.select_ee import select_ee
 from teleop.analysis.windows import conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
@@ -182,9 +184,10 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         start_i += len(s_.t)
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
+    proposed: tuple[ProposedTerm, ...] = ()   # library terms (output-error only)
     if mode == "output-error":
-        final, chosen, ranking = select_oe(data, nominal, nom_fit, opts, names, sig,
-                                            fixed_inertia, noise)
+        final, chosen, ranking, proposed = select_with_library(
+            data, nominal, nom_fit, opts, names, sig, fixed_inertia, noise)
         r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
         before, after = nom_nrmse, nrmse(data.y, final.y_fit)
         p_nom, e_nom = build(nom_fit.names, nom_fit.theta, data)
@@ -192,9 +195,9 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         ee_nom = model_equation_error(sig, p_nom, e_nom)
         ee_fin = model_equation_error(sig, p_fin, e_fin)
         nominal_params = tuple((k, v) for k, v in nom_fit.as_dict().items()
-                               if not k.startswith(("x0_", "v0_")))
+                               if not k.startswith(("x0_", "v0_", BEFORE)))
         final_params = tuple((k, v) for k, v in final.as_dict().items()
-                             if not k.startswith(("x0_", "v0_")))
+                             if not k.startswith(("x0_", "v0_", BEFORE)))
         traces = Traces(t_all, data.y, nom_fit.y_fit, final.y_fit, r_after)
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
@@ -230,8 +233,10 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     if validate is not None:
         val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
                else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia))
+    units = (library.units(opts.input_col, "effort units"),
+             library.units(opts.output_col, "position units"))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
-                     windows, stats_b, stats_a, before, after, val, traces)
+                     windows, stats_b, stats_a, before, after, val, traces, proposed, units)
 
 
 def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,
@@ -246,7 +251,8 @@ def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFi
     x0, v0 = initial_state(t, y)
     out = []
     for f in (nom, final):
-        start = {**{k: v for k, v in f.as_dict().items() if not k.startswith(("x0_", "v0_"))},
+        start = {**{k: v for k, v in f.as_dict().items()
+                    if not k.startswith(("x0_", "v0_", BEFORE))},
                  "x0_0": x0, "v0_0": v0}
         out.append(nrmse(seg.y, _fit_state_only(vdata, start)))
     return Validation(out[0], out[1])

@@ -16,9 +16,15 @@ import numpy as np
 from scipy import optimize
 
 from teleop.analysis import candidates as cand
+from teleop.analysis import library
 from teleop.analysis.axis_model import Array, AxisParams, simulate_axis
 from teleop.analysis.model import AxisNominal
 from teleop.effects import EffectSet
+
+#: Nominal parameter: the input's sample alignment in s (``axis_model.input_effort``).
+SHIFT = "input_shift"
+#: With a dead time, the input before segment ``i``'s record is unknown: ``u_before_i``.
+BEFORE = "u_before_"
 
 NUMERIC_FAILURES = (OverflowError, ZeroDivisionError, ValueError, FloatingPointError,
                     np.linalg.LinAlgError)
@@ -95,8 +101,10 @@ class ModelFit:
 
 
 def free_terms(nominal: AxisNominal, has_input: bool) -> tuple[str, ...]:
-    """Nominal terms refined by the fit (inertia is a unit choice for a free response)."""
-    return tuple(t for t in nominal.terms if not (t == "inertia" and not has_input))
+    """Nominal terms refined by the fit (inertia is a unit choice for a free response); with an
+    input, also its sample alignment (``SHIFT``, within one raw sample period)."""
+    return tuple(t for t in nominal.terms if not (t == "inertia" and not has_input)) + (
+        (SHIFT,) if has_input else ())
 
 
 def build(names: tuple[str, ...], theta: Array | tuple[float, ...], data: FitData
@@ -107,7 +115,9 @@ def build(names: tuple[str, ...], theta: Array | tuple[float, ...], data: FitDat
                    viscous=vals.get("viscous", 0.0), stiffness=vals.get("stiffness", 0.0),
                    gravity=vals.get("gravity", 0.0), coulomb=vals.get("coulomb", 0.0),
                    offset=vals.get("offset", 0.0),
-                   stribeck_velocity=vals.get("stribeck_velocity", data.stribeck_velocity))
+                   stribeck_velocity=vals.get("stribeck_velocity", data.stribeck_velocity),
+                   input_shift_s=vals.get(SHIFT, 0.0),
+                   terms=library.resolve(vals))
     eff = EffectSet()
     for name, z in vals.items():
         if name.startswith("effect:"):
@@ -124,7 +134,8 @@ def simulate(names: tuple[str, ...], theta: Array | tuple[float, ...], data: Fit
     p, eff = build(names, theta, data)
     vals = dict(zip(names, (float(v) for v in theta), strict=True))
     try:
-        out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s)
+        out = [simulate_axis(s.t, s.u, p, eff, vals[f"x0_{i}"], vals[f"v0_{i}"], data.max_dt_s,
+                             vals.get(f"{BEFORE}{i}"))
                for i, s in enumerate(data.segments)]
     except NUMERIC_FAILURES:
         # a parameter vector the simulation cannot integrate is as bad as a divergent one
@@ -139,6 +150,15 @@ def _bounds(name: str, nominal: AxisNominal, data: FitData) -> tuple[float, floa
         return -math.inf, math.inf
     if name == "stribeck_velocity":
         return 0.002 * data.scales.velocity, 0.5 * data.scales.velocity
+    if name == SHIFT:
+        return -data.scales.dt_s, data.scales.dt_s
+    if name.startswith(BEFORE):
+        return -1.5 * data.scales.umax, 1.5 * data.scales.umax
+    if name.startswith(library.PREFIX):
+        return -math.inf, math.inf
+    if name.startswith(library.WAVE):
+        w0 = float(name[len(library.WAVE):])
+        return 0.9 * w0, 1.1 * w0
     return nominal.bounds(name)
 
 
@@ -154,6 +174,12 @@ def _scale(name: str, start: float, data: FitData) -> float:
         return 0.05
     if name == "effect:actuator_gain":
         return 1.0
+    if name == SHIFT:
+        return 0.5 * s.dt_s
+    if name.startswith(BEFORE):
+        return max(s.effort, 1e-12)
+    if name.startswith(library.WAVE):
+        return 0.01 * start
     return max(abs(start), 1e-6 * s.effort, 1e-12)
 
 
@@ -171,14 +197,20 @@ def _inside(v: float, lo: float, hi: float) -> float:
 def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
               effects: tuple[str, ...] = (), max_nfev: int = 60,
               mask: Array | None = None) -> ModelFit:
-    """Least-squares fit from ``start`` (name -> value; effect coordinates as ``effect:NAME``).
+    """Least-squares fit from ``start`` (name -> value; effect coordinates as ``effect:NAME``;
+    every library term in ``start``, ``term:KIND:CONST``, is fitted too).
 
     ``mask`` (boolean on the fit grid) restricts the samples the fit sees (held-out checks).
     """
     names = tuple(free_terms(nominal, data.has_input)) + tuple(
         f"effect:{e}" for e in effects) + (("stribeck_velocity",) if "stiction" in effects
-                                           else ()) + data.state_names()
-    defaults = {"stribeck_velocity": data.stribeck_velocity}
+                                           else ()) + tuple(
+        k for k in start if k.startswith((library.PREFIX, library.WAVE))) + data.state_names() + (
+        tuple(f"{BEFORE}{i}" for i in range(len(data.segments))) if "dead_time" in effects
+        else ())
+    defaults = {"stribeck_velocity": data.stribeck_velocity,
+                **{f"{BEFORE}{i}": float(sg.u[0]) for i, sg in enumerate(data.segments)
+                   if sg.u is not None}}
     x_start = np.array([start.get(n, defaults.get(n, 0.0)) for n in names], float)
     lo = np.array([_bounds(n, nominal, data)[0] for n in names])
     hi = np.array([_bounds(n, nominal, data)[1] for n in names])

@@ -8,7 +8,9 @@ from typing import Any
 from teleop.analysis.ambiguity import ambiguous
 from teleop.analysis.criterion import unexplained
 from teleop.analysis.diagnose import Diagnosis
+from teleop.analysis.library import equation
 from teleop.analysis.residual import ResidualStats
+from teleop.analysis.results import ProposedTerm
 
 
 def _fmt(v: float) -> str:
@@ -41,10 +43,18 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
         "unexplained": _warning(d),
         "ambiguous": ambiguous(d.effects[0].name, d.ranking) if d.effects else [],
     }
+    out["proposed"] = [{"term": ",".join(p.keys), "keys": list(p.keys),
+                        "coefs": list(p.coefs), "score": p.score,
+                        "holdout_gain": p.holdout_gain, "equation": _equation(p, d.units)}
+                       for p in d.proposed]
     if d.validation is not None:
         out["validation"] = {"before": {"nrmse": d.validation.nrmse_before},
                              "after": {"nrmse": d.validation.nrmse_after}}
     return out
+
+
+def _equation(p: ProposedTerm, units: tuple[str, str]) -> str:
+    return equation(dict(zip(p.keys, p.coefs, strict=True)), *units)
 
 
 def _warning(d: Diagnosis) -> str | None:
@@ -77,6 +87,8 @@ def to_text(d: Diagnosis, source: str = "") -> str:
         if _warning(d):
             lines.append(f"WARNING: {_warning(d)}")
         lines += [f"note: {a}" for a in ambiguous(d.effects[0].name, d.ranking)]
+    elif d.proposed:
+        lines.append("missing physics: no catalog effect (the terms below explain it)")
     elif d.residual_after.rms_over_noise < 3.0:
         lines.append("missing physics: none the data support (the nominal model explains the "
                      "recording to the noise)")
@@ -84,6 +96,12 @@ def to_text(d: Diagnosis, source: str = "") -> str:
         lines.append(f"missing physics: no catalog effect improves the fit enough, yet the "
                      f"residual is {d.residual_after.rms_over_noise:.0f}x the noise (physics "
                      f"outside the catalog, or a start-up transient)")
+    if d.proposed:
+        lines.append("physics outside the catalog, proposed by sparse regression on the "
+                     "force-domain residual and kept by held-out simulation:")
+        for p in d.proposed:
+            lines.append(f"  {_equation(p, d.units)}")
+            lines.append(f"     score {p.score:.1f}, held-out gain {p.holdout_gain:.1%}")
     if d.ranking:
         lines.append("candidates (score vs nominal): " + ", ".join(
             f"{n} {b:.0f}" for n, b in d.ranking))

@@ -46,6 +46,17 @@ class EffectResult:
 
 
 @dataclass(frozen=True, slots=True)
+class ProposedTerm:
+    """One accepted library term (``teleop.analysis.library``; a sin/cos pair is one) and its
+    evidence under the selection rule."""
+
+    keys: tuple[str, ...]
+    coefs: tuple[float, ...]
+    score: float
+    holdout_gain: float
+
+
+@dataclass(frozen=True, slots=True)
 class Validation:
     """Fit on a held-out recording."""
 
@@ -81,6 +92,8 @@ class Diagnosis:
     nrmse_after: float
     validation: Validation | None
     traces: Traces
+    proposed: tuple[ProposedTerm, ...] = ()   # library terms outside the catalog
+    units: tuple[str, str] = ("effort units", "position units")
 
 
 def nrmse(y: Array, y_hat: Array) -> float:

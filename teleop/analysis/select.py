@@ -27,6 +27,8 @@ from teleop.analysis.fit import (
 from teleop.analysis.model import AxisNominal
 from teleop.analysis.results import DiagnoseOptions, EffectResult
 
+HOLDOUT_FLOOR = 2.0   # noise levels (twice the floor, as the finger path)
+
 
 def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple[str, float], ...],
                                                                      tuple[tuple[str, float], ...]]:
@@ -51,8 +53,9 @@ def _score(base: ModelFit, aug: ModelFit, data: FitData) -> float:
 
 
 def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: ModelFit,
-                  nfev: int) -> float:
-    """Relative error reduction on the last 30 % of every segment, both fitted on the rest."""
+                  nfev: int) -> tuple[float, float]:
+    """Relative error reduction on the last 30 % of every segment, both fitted on the rest,
+    and the rms error of ``base`` there (is the held-out part informative?)."""
     masks = []
     for s in data.segments:
         m = np.ones(len(s.y), bool)
@@ -66,7 +69,14 @@ def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: Mode
         f2 = fit_model(data, nominal, f.as_dict(), f.effects, nfev, mask=train)
         r = f2.y_fit - y
         errs.append(float(np.sum(np.where(np.isfinite(r), r, 1e6)[test] ** 2)))
-    return 1.0 - errs[1] / errs[0] if errs[0] > 0 else 0.0
+    rms0 = math.sqrt(errs[0] / max(int(test.sum()), 1))
+    return (1.0 - errs[1] / errs[0] if errs[0] > 0 else 0.0), rms0
+
+
+def informative(rms_base_test: float, noise: float) -> bool:
+    """Whether a held-out part can confirm an effect: the model without it must miss there by
+    more than ``HOLDOUT_FLOOR`` noise levels (the rule in :mod:`teleop.analysis.criterion`)."""
+    return not (noise > 0 and rms_base_test < HOLDOUT_FLOOR * noise)
 
 
 def _ee_start(sig: EESignals, nominal: AxisNominal, current: ModelFit, name: str,
@@ -162,11 +172,12 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
             if dbic < opts.criterion.min_score:
                 break
             try:
-                gain = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
+                gain, rms0 = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
             except NUMERIC_FAILURES:
                 continue
             if not crit.judge(current.rss, f.rss, f.y_fit - data.y, f.n_params - current.n_params,
-                              gain, criterion=opts.criterion).accepted:
+                              gain, informative(rms0, noise),
+                              criterion=opts.criterion).accepted:
                 continue
             p, s = _effect_params(name, f, data)
             chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))

@@ -14,7 +14,13 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from teleop.commands.common import add_json_option, info, nonneg_float, write_json
+from teleop.commands.common import (
+    add_json_option,
+    check_output_path,
+    info,
+    nonneg_float,
+    write_json,
+)
 
 if TYPE_CHECKING:
     from teleop.recording import Recording
@@ -53,6 +59,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--validate", type=Path, default=None, metavar="REC",
                    help="held-out recording: report NRMSE of both models on it")
     add_json_option(p)
+    p.add_argument("--write-params", type=Path, default=None, metavar="FILE",
+                   help="--model finger: write the refined finger parameters and the effects "
+                   "found as TOML that teleop sim and the simulated hand load "
+                   "(--set hand.sim.model=FILE)")
     p.add_argument("--plot", type=Path, default=None, metavar="PNG",
                    help="write a plot: measured vs nominal vs augmented, residual, windows")
     p.set_defaults(run=run)
@@ -89,6 +99,11 @@ def run(args: argparse.Namespace) -> int:
     from teleop.errors import RecordingError, UserInputError
     from teleop.recording import read_recording
 
+    if args.write_params is not None:
+        if args.model != "finger":
+            raise UserInputError("--write-params: only --model finger has parameters the "
+                                 "simulation loads")
+        check_output_path(args.write_params, "--write-params")
     if args.model == "finger":
         try:
             from sim.finger_diagnose import diagnose_finger  # type: ignore[import-not-found]

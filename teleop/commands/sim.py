@@ -82,6 +82,13 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.json_path, "JSON")
     cfg = config_from_args(args)
     params = default_finger_params()
+    if cfg.hand.sim.model:  # refined by teleop diagnose --write-params; --effect adds to it
+        from sim.finger_model_file import load_model
+
+        params, found = load_model(cfg.hand.sim.model, params)
+        for name in effects.active():
+            found = found.with_effect(name, getattr(effects, name))
+        effects = found
     if args.driver_delay or cfg.hand.sim.command_delay:
         params = replace(params, command_delay_s=0.09)
     obj = contact_object_from_config(cfg.hand.sim.object)

@@ -34,6 +34,9 @@ class SimHandConfig:
     engine: str = param("compiled", "physics engine: the numba-compiled step, or the Python "
                         "reference it is held to (within 1e-9 rad)",
                         choices=("compiled", "python"))
+    model: str = param("", "finger model file written by teleop diagnose --write-params "
+                       "(TOML: refined finger parameters and effects); empty: the calibrated "
+                       "finger")
     object: ObjectConfig = section(ObjectConfig, "the grasped object")
 
 

@@ -33,6 +33,7 @@ class IndepCase:
     concealed: str | None
     value: float
     nominal: AxisNominal
+    wavenumber: float = 0.0   # cogging: 2 pi / period (1/rad)
 
 
 def _input(kind: str, t: np.ndarray, k: float, rng: np.random.Generator) -> np.ndarray:
@@ -93,7 +94,8 @@ def make(concealed: str | None, seed: int, duration_s: float = 4.0) -> IndepCase
                           (m * (1 + off[0]), None, k * (1 + off[1])), 0.3)
     rec = Recording.from_columns({"t_s": t, "torque_nm": u, "angle_rad": y},
                                  (("generator", "tests indep_axis"), ("seed", str(seed))))
-    return IndepCase(rec, concealed, float(value), nominal)
+    return IndepCase(rec, concealed, float(value), nominal,
+                     2 * math.pi / period if concealed == "cogging" else 0.0)
 
 
 def make_closed_loop(seed: int, asym_coulomb: float, asym_viscous: float,

@@ -1,7 +1,9 @@
 """Proof on recordings the project did not generate (`indep_axis.py`: own RK45 integrator,
 smooth Coulomb law, own inputs, noise and 12-bit quantisation, nominal inertia and stiffness
 5-20 % off the truth), concealed effects of random magnitude, clean recordings, and a
-position-periodic cogging torque outside the catalog.  Rates are over the whole batch."""
+position-periodic cogging torque outside the catalog (to be proposed as a library term, and
+never named as a catalog effect with confidence).  Rates are over the whole batch; the floors
+are the issue's (>= 95 % ranked first, >= 95 % clean, <= 10 % out-of-catalog named)."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ import pytest
 from indep_axis import IndepCase, make  # tests/teleop/analysis/indep_axis.py
 
 from teleop.analysis.diagnose import DiagnoseOptions, Diagnosis, diagnose
+from teleop.analysis.library import Term
 from teleop.analysis.report import to_json
 
 CONCEALED = ("coulomb_friction", "dead_time", "sensor_offset", "actuator_gain",
@@ -24,7 +27,7 @@ def batch() -> tuple[tuple[IndepCase, Diagnosis], ...]:
     out = []
     for i in range(PER_CLASS):
         for j, name in enumerate((None, *CONCEALED, "cogging")):
-            c = make(name, SEED + 10 * i + j)
+            c = make(name, SEED + 11 * i + j)  # stride 11: both input kinds in every class
             out.append((c, diagnose([c.recording],
                                     DiagnoseOptions(c.nominal, "torque_nm", "angle_rad"))))
     return tuple(out)
@@ -39,7 +42,7 @@ def test_concealed_effect_ranked_first_on_independent_recordings() -> None:
     cases = [(c, d) for c, d in batch() if c.concealed in CONCEALED]
     hits = [_first(d) == c.concealed for c, d in cases]
     misses = [(c.concealed, _first(d)) for (c, d), h in zip(cases, hits, strict=True) if not h]
-    assert sum(hits) >= 0.9 * len(cases), misses
+    assert sum(hits) >= 0.95 * len(cases), misses   # the issue's floor
 
 
 @pytest.mark.slow
@@ -51,11 +54,23 @@ def test_outside_the_catalog_is_never_named_without_the_unexplained_warning() ->
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="issue 14 floor not met: 1/3 clean on this batch; the "
-                   "nominal residual stays 1.5-2.4x the noise and friction terms absorb it")
 def test_clean_independent_recordings_report_no_effect_at_the_floor() -> None:
-    found = [[e.name for e in d.effects] for c, d in batch() if c.concealed is None]
-    assert sum(not f for f in found) >= 0.9 * len(found), found
+    found = [[e.name for e in d.effects] + [p.keys[0] for p in d.proposed]
+             for c, d in batch() if c.concealed is None]
+    assert sum(not f for f in found) >= 0.95 * len(found), found
+
+
+@pytest.mark.slow
+def test_cogging_is_proposed_as_a_position_periodic_term_with_its_wavenumber() -> None:
+    cases = [(c, to_json(d)) for c, d in batch() if c.concealed == "cogging"]
+    found = []
+    for c, js in cases:
+        waves = [Term.parse(k).const for p in js["proposed"] for k in p["keys"]
+                 if Term.parse(k).kind == "sin"]
+        found.append(any(abs(w / c.wavenumber - 1) < 0.02 for w in waves))
+        for p in js["proposed"]:
+            assert p["equation"].startswith("effort [N m] += "), p
+    assert sum(found) > 0.5 * len(cases), [(c.wavenumber, js["proposed"]) for c, js in cases]
 
 
 @pytest.mark.slow
