@@ -26,10 +26,12 @@ at the present ``q`` changes by at most ``force_rate_n_per_s * dt`` and
 the stored energy stays within what the tank holds above its minimum (or does not rise): an
 update that raises the stored energy is paid from the master tank, as the tank allows.  A
 finger whose rendered stiffness is 0 takes the new contact angle at once (no force change).
-A model withdrawn (received stiffness 0: the hand saw the object go, or its estimate was
-dropped, or a watchdog cut it: liveliness lost) goes at once, like the force the services'
-watchdogs cut; a watchdog's timeout ramp scales the received stiffness down and is followed
-at the rate limit.
+A model withdrawn by the hand (received stiffness 0: the object went, or the estimate
+diverged and was dropped) ramps out at the same rate limit while the delayed measured force
+takes over (the displayed force is the larger of the two), so the hand-over has no step down.
+When a watchdog has cut the link (the command's force is exactly 0: liveliness lost, or a
+timeout ramp at its end) a withdrawn model goes at once, like the force; a timeout ramp on
+its way scales the received stiffness down and is followed at the rate limit.
 
 The passivity argument does not depend on any of this: the master's tank pays the exact port
 work of whatever force is displayed (``teleop.control.two_layer``).
@@ -111,16 +113,18 @@ def _mix(r: RenderState, c_t: Triple, k_t: Triple, a: float) -> RenderState:
 
 
 def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m: float,
-                budget_j: float, rate_n_per_s: float, dt_s: float) -> RenderState:
-    """Move the rendered model towards ``model`` (wire form, see module docstring)."""
+                budget_j: float, rate_n_per_s: float, dt_s: float,
+                cut: bool = False) -> RenderState:
+    """Move the rendered model towards ``model`` (wire form, see module docstring); ``cut``:
+    the link is cut (a watchdog zeroed the command), a withdrawn model goes at once."""
     k_t = tuple(max(model[2 * i + 1], 0.0) for i in range(3))
     # a finger with no received model keeps its contact angle while its stiffness ramps out
     c_t = tuple(model[2 * i] if k_t[i] > 0.0 else r.contact_rad[i] for i in range(3))
-    # a finger rendering nothing takes the new contact angle at once; a model withdrawn
-    # (stiffness 0: object gone, estimate dropped, a watchdog cut the link) goes at once
+    # a finger rendering nothing takes the new contact angle at once; with the link cut a
+    # withdrawn model goes at once
     r0 = RenderState(contact_rad=tuple(c_t[i] if r.stiffness_n_per_rad[i] == 0.0  # type: ignore[arg-type]
                                        else r.contact_rad[i] for i in range(3)),
-                     stiffness_n_per_rad=tuple(k if k_t[i] > 0.0 else 0.0  # type: ignore[arg-type]
+                     stiffness_n_per_rad=tuple(0.0 if cut and k_t[i] == 0.0 else k  # type: ignore[arg-type]
                                                for i, k in enumerate(r.stiffness_n_per_rad)))
     f0, e0 = model_force_n(r0, p, q_m), model_energy_j(r0, p, q_m)
     full = _mix(r0, c_t, k_t, 1.0)  # type: ignore[arg-type]

@@ -123,17 +123,42 @@ def test_the_master_tank_keeps_the_rendered_energy_before_sending_quanta() -> No
     assert s.ledger.port_out_j == pytest.approx(s.ledger.port_in_j, rel=0.05)
 
 
-def test_a_withdrawn_model_goes_at_once_and_a_lowered_one_at_the_rate_limit() -> None:
+def test_a_withdrawn_model_ramps_out_unless_the_link_is_cut() -> None:
     q = 0.0045
     r = RenderState()
     for _ in range(400):
         r = step_render(r, P, MODEL, q, 10.0, 40.0, DT)
     f = model_force_n(r, P, q)
     assert f > 5.0
-    gone = step_render(r, P, (0.0,) * 6, q, 10.0, 40.0, DT)  # object gone / watchdog cut
-    assert model_force_n(gone, P, q) == 0.0 and gone.phase == 0.0
+    cut = step_render(r, P, (0.0,) * 6, q, 10.0, 40.0, DT, cut=True)  # a watchdog cut
+    assert model_force_n(cut, P, q) == 0.0 and cut.phase == 0.0
+    gone = step_render(r, P, (0.0,) * 6, q, 10.0, 40.0, DT)  # the hand withdrew it
+    assert model_force_n(gone, P, q) == pytest.approx(f - 40.0 * DT)
     half = step_render(r, P, (0.4, 20.0) * 3, q, 10.0, 40.0, DT)  # a watchdog ramp step
     assert model_force_n(half, P, q) == pytest.approx(f - 40.0 * DT)
+
+
+def test_a_dropped_estimate_hands_over_to_the_delayed_force_without_a_step() -> None:
+    """The hand drops a diverged model while the delayed measured force says 3 N: the
+    displayed force moves at most the rate limit per sample and ends at the delayed force."""
+    p = replace(P, tlc_gain=0.0)
+    s = two_layer.init_master(p)
+    q = 0.0045
+    for _ in range(600):
+        s, out = two_layer.step_master(s, p, q, command(MODEL, force_n=3.0), DT)
+    before = out.force_n
+    assert before > 5.0
+    full = s
+    forces = [before]
+    for _ in range(600):
+        s, out = two_layer.step_master(s, p, q, command((0.0,) * 6, force_n=3.0), DT)
+        forces.append(out.force_n)
+    rate = p.contact_model.force_rate_n_per_s
+    assert max(abs(b - a) for a, b in zip(forces, forces[1:], strict=False)) <= rate * DT + 1e-9
+    assert forces[-1] == pytest.approx(3.0, abs=0.05)
+    # the same command zeroed by a watchdog: the force goes at once
+    _, cut = two_layer.step_master(full, p, q, command((0.0,) * 6, force_n=0.0), DT)
+    assert cut.force_n == 0.0
 
 
 def test_a_new_touch_is_capped_until_the_master_has_seen_its_model() -> None:

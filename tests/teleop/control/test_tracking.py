@@ -7,6 +7,11 @@ the displayed force of ``two-layer`` differ from ``direct`` by
 * RMS < 0.01 rad and < 0.02 N with the hand side at 1 kHz,
 * RMS < 0.05 rad and < 0.2 N with the hand side at 40 Hz (the stock driver's rate; the tank
   level controller's small damping changes the operator's motion a little).
+These hold for the delayed-force path (``controller.contact_model`` off: measured identical
+to direct to 0.002 rad).  With model-mediated rendering (the default) the master displays the
+fitted settled map instead of the measured force, so the operator moves a little differently:
+measured 0.007-0.012 rad / 0.03-0.05 N at 1 kHz and 0.018-0.038 rad / 0.08-0.16 N at 40 Hz;
+stated bounds 0.02 rad / 0.1 N and 0.06 rad / 0.25 N.
 """
 
 from __future__ import annotations
@@ -27,8 +32,10 @@ from teleop.control.stability_limit import DirectLoopParams, predicted_max_stabl
 SERVO = {"servo_stiffness_nm_per_rad": 13.0, "servo_damping_nm_s_per_rad": 0.8}
 
 
-def run(kind: str, sc: Scenario) -> Trace:
+def run(kind: str, sc: Scenario, rendering: bool = True) -> Trace:
     p = replace(control_params(ControllerConfig(kind=kind)), **SERVO)
+    if not rendering:
+        p = replace(p, contact_model=None)
     return run_loop(CONTROLLERS[kind], p, sc)
 
 
@@ -36,14 +43,15 @@ def rms(a: np.ndarray) -> float:
     return float(np.sqrt(np.mean(a ** 2)))
 
 
-@pytest.mark.parametrize(("hand_every", "sp_bound", "f_bound"), [(1, 0.01, 0.02),
-                                                                 (25, 0.05, 0.2)])
+@pytest.mark.parametrize(("hand_every", "rendering", "sp_bound", "f_bound"), [
+    (1, False, 0.01, 0.02), (25, False, 0.05, 0.2), (1, True, 0.02, 0.1), (25, True, 0.06, 0.25)])
 @pytest.mark.parametrize("wall", [1.8, 2.2])
-def test_two_layer_tracks_like_direct_at_zero_delay(hand_every: int, sp_bound: float,
-                                                    f_bound: float, wall: float) -> None:
+def test_two_layer_tracks_like_direct_at_zero_delay(hand_every: int, rendering: bool,
+                                                    sp_bound: float, f_bound: float,
+                                                    wall: float) -> None:
     sc = Scenario(steps=4000, ref_period_s=4.0, ref_fraction=0.8, wall_rad=(wall,) * 3,
                   hand_every=hand_every)
-    d, t = run("direct", sc), run("two-layer", sc)
+    d, t = run("direct", sc), run("two-layer", sc, rendering)
     fd = np.array(d.force_n)
     assert fd.max() > 0.3  # the grasp really presses on the contact
     assert rms(np.array(t.setpoint) - np.array(d.setpoint)) < sp_bound
