@@ -22,11 +22,8 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-@pytest.mark.xfail(strict=False, reason="issue 13: live two-layer at 0 ms on the sweep's held "
-                   "grasp holds a small ~1.7 Hz cycle (fingers +-0.016 rad, force 4.2-6.2 N) "
-                   "that lockstep does not show; the force-gain collapses that made it a "
-                   "1-2 Hz, 8 N cycle are fixed (echo jitter read as an outage), this is what "
-                   "is left; the live round trip is 36-52 ms (gain 0.78-1)")
+# was a non-strict xfail (issue 13): a small ~1.7 Hz live cycle on the held grasp that lockstep
+# did not show; with model-mediated rendering the force loop is local and it passed every run
 def test_live_point_is_passive_and_stable_at_zero_delay() -> None:
     cfg = load_config()
     cfg = apply_overrides(cfg, cfg.sweep.scenario)
