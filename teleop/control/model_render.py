@@ -126,6 +126,10 @@ def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m:
                                        else r.contact_rad[i] for i in range(3)),
                      stiffness_n_per_rad=tuple(0.0 if cut and k_t[i] == 0.0 else k  # type: ignore[arg-type]
                                                for i, k in enumerate(r.stiffness_n_per_rad)))
+    total = sum(k_t)
+    if r0.stiffness_n_per_rad == k_t and r0.contact_rad == c_t:  # nothing to phase in
+        return RenderState(contact_rad=r0.contact_rad, stiffness_n_per_rad=r0.stiffness_n_per_rad,
+                           phase=1.0 if total > 0.0 else 0.0)
     f0, e0 = model_force_n(r0, p, q_m), model_energy_j(r0, p, q_m)
     full = _mix(r0, c_t, k_t, 1.0)  # type: ignore[arg-type]
     jump = abs(model_force_n(full, p, q_m) - f0)
@@ -138,7 +142,6 @@ def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m:
                 and (e <= budget_j or e <= e0)):
             new = cand
             break
-    total = sum(k_t)
     phase = min(sum(new.stiffness_n_per_rad) / total, 1.0) if total > 0.0 else 0.0
     return RenderState(contact_rad=new.contact_rad, stiffness_n_per_rad=new.stiffness_n_per_rad,
                        phase=phase)
