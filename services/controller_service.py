@@ -23,7 +23,7 @@ from teleop.config import TeleopConfig
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.interface import ControllerSuite, control_params
 from teleop.control.transparency_layer import combined_force_n
-from teleop.messages import HandState, MasterState
+from teleop.messages import HandState, MasterState, scaled_model
 from teleop.transport.bus import Bus
 
 
@@ -82,7 +82,7 @@ class ControllerService:
         if self.wd.gain < 1.0:  # the contact model is as stale as the force: both ramp out
             g = self.wd.gain
             fc = replace(fc, force_n=fc.force_n * g,
-                         model=tuple(v * g if i % 2 else v for i, v in enumerate(fc.model)))
+                         model=scaled_model(fc.model, g))
         self.bus.publish("force_command", fc)
         self.bus.publish("hand_command", out.hand_command)
         led = self.ledger = out.ledger

@@ -22,7 +22,7 @@ from teleop.config import TeleopConfig
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.interface import ControllerSuite, control_params, master_message
 from teleop.devices.base import MasterBackend
-from teleop.messages import ForceCommand
+from teleop.messages import ForceCommand, scaled_model
 from teleop.transport.bus import Bus
 
 
@@ -83,7 +83,7 @@ class MasterService:
         if cmd is not None and self.wd.gain < 1.0:
             g = self.wd.gain  # the rendered contact model ramps out with the force
             cmd = replace(cmd, force_n=cmd.force_n * g,
-                          model=tuple(v * g if i % 2 else v for i, v in enumerate(cmd.model)))
+                          model=scaled_model(cmd.model, g))
         reading = self.backend.read(t_s)
         self.state, out = self.suite.step_master(self.state, self.params,
                                                  reading.grip_position_m, cmd, self.dt_s)

@@ -23,6 +23,12 @@ SCHEMA_VERSION = 3  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: 
 #: a contact model per finger travels as ``(contact_rad, stiffness)`` pairs, fingers 1-3
 #: flattened; stiffness 0 = no model for that finger
 NO_MODEL = (0.0,) * 6
+
+
+def scaled_model(model: tuple[float, ...], gain: float) -> tuple[float, ...]:
+    """``model`` with every finger's stiffness times ``gain`` (a watchdog's ramp); the
+    contact angles stay."""
+    return tuple(v * gain if i % 2 else v for i, v in enumerate(model))
 N_FINGERS = 3
 N_PRESSURE = 9  # per finger: 5 proximal, 4 distal
 

@@ -63,24 +63,24 @@ def map_gain_rad_per_m(p: ControlParams) -> float:
     return abs(p.closed_angle_rad - p.open_angle_rad) / p.trigger_travel_m
 
 
-def finger_forces_n(r: RenderState, p: ControlParams, q_m: float) -> Triple:
+def setpoint_rad(p: ControlParams, q_m: float) -> float:
+    """The set-point every enabled finger gets at trigger closing ``q_m`` (the open angle
+    when none is enabled)."""
     th = grip_to_setpoints(q_m, p)
-    return tuple(k * max(t - c, 0.0)  # type: ignore[return-value]
-                 for k, t, c in zip(r.stiffness_n_per_rad, th, r.contact_rad, strict=True))
+    return next((th[i] for i in range(3) if p.finger_enable[i]), p.open_angle_rad)
 
 
 def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
     """The rendered spring force at ``q_m`` (no damping), at most ``force_max_n``."""
-    return min(max(combine(finger_forces_n(r, p, q_m), p), 0.0), p.force_max_n)
+    return _force_at(r, p, setpoint_rad(p, q_m))
 
 
 def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     """The stored energy of the rendered model at ``q_m``: ``int_0^q F_model`` (see module)."""
-    th = grip_to_setpoints(q_m, p)
     on = [i for i in range(3) if p.finger_enable[i] and r.stiffness_n_per_rad[i] > 0.0]
     if not on:
         return 0.0
-    t_end, t0 = th[on[0]], min(r.contact_rad[i] for i in on)
+    t_end, t0 = setpoint_rad(p, q_m), min(r.contact_rad[i] for i in on)
     if t_end <= t0:
         return 0.0
     n = _ENVELOPE_STEPS
@@ -95,10 +95,6 @@ def _force_at(r: RenderState, p: ControlParams, theta: float) -> float:
     per = tuple(k * max(theta - c, 0.0) for k, c in zip(r.stiffness_n_per_rad, r.contact_rad,
                                                          strict=True))
     return min(max(combine(per, p), 0.0), p.force_max_n)  # type: ignore[arg-type]
-
-
-def in_contact(r: RenderState, p: ControlParams, q_m: float) -> bool:
-    return any(f > 0.0 for f in finger_forces_n(r, p, q_m))
 
 
 def damping_n_s_per_m(r: RenderState, p: ControlParams, periods: float, dt_s: float) -> float:

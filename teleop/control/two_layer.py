@@ -406,8 +406,8 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     ns, out = step(s, p, fingers, command, dt_s)
     if p.contact_model is None or s.setpoint_prev is None:
         return ns, out
-    x = measure_hand(s, fingers)
-    models = step_models(s.models, p.contact_model, s.setpoint_prev, x,
+    assert ns.x_prev is not None  # both layers keep this sample's measured motor angles
+    models = step_models(s.models, p.contact_model, s.setpoint_prev, ns.x_prev,
                          max_pressures(fingers, p), dt_s)
     return replace(ns, models=models), replace(out, contact_model=model_wire(models),
                                                model_fallbacks=sum(m.fallbacks for m in models))
