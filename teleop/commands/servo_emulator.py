@@ -11,16 +11,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
 from pathlib import Path
-from types import FrameType
 
 from teleop.commands.common import (
     add_config_options,
     config_from_args,
     nonneg_float,
     positive_float,
+    serve_until_stopped,
 )
 from teleop.errors import UserInputError
 
@@ -77,10 +76,6 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(run=run)
 
 
-def _stop(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace) -> int:
     """Serve the emulated servos until Ctrl-C or ``--duration``."""
     from sim.servo_emulator_bus import FaultConfig
@@ -125,15 +120,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"servo-emulator: {len(ids)} MX-28 (protocol {protocol}.0, IDs "
           f"{','.join(map(str, ids))}) on {link or path}; physics: {bus.physics.label}; "
           "Ctrl-C to stop", file=sys.stderr, flush=True)
-    old = signal.signal(signal.SIGTERM, _stop)
-    old_int = signal.signal(signal.SIGINT, _stop)  # also when started with SIGINT ignored
     try:
-        emu.serve(args.duration)
-    except KeyboardInterrupt:
-        pass
+        serve_until_stopped(lambda: emu.serve(args.duration))
     finally:
-        signal.signal(signal.SIGTERM, old)
-        signal.signal(signal.SIGINT, old_int)
         emu.stop()
         if link is not None and link.is_symlink():
             link.unlink()

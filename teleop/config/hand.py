@@ -95,11 +95,55 @@ class DynamixelConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class TakkTileConfig:
+    """The ReFlex TakkTile's brain board over UDP (the servo mechanics: ratios, inversion,
+    travel, overload thresholds, load filter and speed come from hand.dynamixel)."""
+
+    network: str = param("multicast", "how the board is reached: multicast (the real hand) "
+                         "or unicast (teleop hand-emulator on loopback)",
+                         choices=("multicast", "unicast"))
+    address: str = param("224.0.0.124", "the board's multicast group, or its unicast address "
+                         "(IPv4)")
+    port: int = param(11333, "the board's UDP port (multicast: the PC binds it too)", lo=1,
+                      hi=65535)
+    interface: str = param("", "multicast: IPv4 address of the local interface facing the "
+                           "hand (empty: the system's choice)")
+    multicast_loopback: bool = param(False, "multicast: hear our own host's multicast (on "
+                                     "when the emulator runs on this host; the stock driver "
+                                     "turns it off)")
+    zeros_rad: tuple[float, ...] = param((0.0, 0.0, 0.0, 0.0), "motor zero per motor: raw * "
+                                         "scale / ratio at joint angle 0 (what calibration "
+                                         "saves)", unit="rad", lo=-1000.0, hi=1000.0, size=4)
+    calibrate: bool = param(False, "calibrate the finger motor zeros at start against the "
+                            "proximal encoders (step 6 counts until the encoder moves 0.05 "
+                            "rad, back off 50 counts)")
+    calibration_step_s: float = param(0.05, "time between 6-count calibration steps",
+                                      unit="s", lo=0.001, hi=1.0)
+    calibration_max_steps: int = param(400, "calibration steps before giving up", lo=1,
+                                       hi=100000)
+    rest_packets: int = param(10, "state packets averaged at start (fingers open, untouched) "
+                              "for the tactile offsets and the proximal encoder zeros; 0: no "
+                              "offsets, encoder zero at count 0", lo=0, hi=1000)
+    contact_threshold: float = param(20.0, "pressure above the resting offset taken as "
+                                     "contact", unit="raw", lo=0.0, hi=65535.0)
+    speed_change_sequence: bool = param(False, "set the moving speed at start with the stock "
+                                        "driver's sequence (velocity mode, speeds, position "
+                                        "mode; 0.02 + 0.035 + 0.035 s)")
+    start_timeout_s: float = param(2.0, "wait this long for the board's first state packet",
+                                   unit="s", lo=0.01, hi=60.0)
+    silent_s: float = param(0.1, "no valid state packet for this long and the board is "
+                            "silent: the hand watchdog trips (4 state periods at 40 Hz)",
+                            unit="s", lo=0.01, hi=10.0)
+
+
+@dataclass(frozen=True, slots=True)
 class HandConfig:
     """The hand service."""
 
-    backend: str = param("sim", "hand backend (registry key)", choices=("sim", "dynamixel"))
+    backend: str = param("sim", "hand backend (registry key)",
+                         choices=("sim", "dynamixel", "reflex-takktile"))
     state_rate_hz: float = param(40.0, "hand state publication rate", unit="Hz", lo=1.0,
                                  hi=1000.0)
     sim: SimHandConfig = section(SimHandConfig, "simulated hand backend")
     dynamixel: DynamixelConfig = section(DynamixelConfig, "dynamixel backend")
+    takktile: TakkTileConfig = section(TakkTileConfig, "reflex-takktile backend (brain board)")
