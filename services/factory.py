@@ -25,6 +25,7 @@ MASTER_BACKENDS: dict[str, str] = {
 HAND_BACKENDS: dict[str, str] = {
     "sim": "services.factory:_sim_hand",
     "dynamixel": "services.factory:_dynamixel_hand",
+    "reflex-takktile": "teleop.devices.reflex_takktile:build_takktile_hand_from",
 }
 
 

@@ -11,6 +11,9 @@ hold command, so energy accounting and set-position modulation stay in force; wh
 return, the set-point blends from the hold position into the commanded one over
 ``safety.force_ramp_s`` (no jump).
 
+A stale reading (the backend has no fresh measurement: a silent brain board) trips the
+watchdog at once, as a vanished controller does, and that tick publishes no hand state.
+
 Joint limits: every set-point is clamped to the hand's joint travel (fingers to
 ``[0, hand.dynamixel.finger_travel_rad]``, preshape to ``[0, hand.dynamixel.preshape_travel_rad]``)
 twice: the received command before the step (so the energy accounts see what is applied),
@@ -101,6 +104,7 @@ class HandService:
         self.finger_max_rad = dx.finger_travel_rad
         self.preshape_max_rad = dx.preshape_travel_rad
         self.clamp_count = 0  # received commands or outputs moved into the joint limits
+        self.stale_ticks = 0  # ticks whose reading had no fresh measurement (silent hand)
 
     def start(self) -> None:
         """Connect and calibrate the hand."""
@@ -157,20 +161,24 @@ class HandService:
         got = self._receive()
         if got:  # echo for the controller's round-trip measurement
             self.command_rx_t_s = t_s
-        prev = self.wd
-        self.wd = watchdog_step(self.wd, self.wd_params, t_s, got,
-                                self.bus.alive("controller"), self.dt_s)
-        if self.wd.tripped and not prev.tripped:
-            self.hold_rad = None  # hold where the fingers are now
-            self.events.append(f"watchdog: no valid command, hand goes to "
-                               f"{self.cfg.safety.hand_safe_state}")
-        elif prev.tripped and not self.wd.tripped:
-            self.events.append("watchdog: commands resumed, blending back" if self.wd.trips
-                               else "first command received, blending in")
         if self.t0_s is None:
             self.t0_s = t_s
         reading = self.backend.read(t_s - self.t0_s)  # backend time: from the first tick
         self.last_reading = reading
+        prev = self.wd
+        # a stale reading (silent hand) trips the watchdog at once, like a vanished peer
+        self.wd = watchdog_step(self.wd, self.wd_params, t_s, got,
+                                self.bus.alive("controller") and not reading.stale, self.dt_s)
+        if self.wd.tripped and not prev.tripped:
+            self.hold_rad = None  # hold where the fingers are now
+            why = "the hand reports no fresh state" if reading.stale else "no valid command"
+            self.events.append(f"watchdog: {why}, hand goes to "
+                               f"{self.cfg.safety.hand_safe_state}")
+        elif prev.tripped and not self.wd.tripped:
+            self.events.append("watchdog: commands resumed, blending back" if self.wd.trips
+                               else "first command received, blending in")
+        if reading.stale:
+            self.stale_ticks += 1
         for fault in reading.faults:
             self.events.append(f"hand fault: {fault}")
         cmd = self._effective_command(reading)
@@ -198,7 +206,8 @@ class HandService:
             fingers=reading.fingers, preshape_rad=reading.preshape_rad,
             echo_t_s=self.command.header.t_s if self.command is not None else -1.0,
             echo_held_s=self._held_s(t_s), contact_model=out.contact_model)
-        self.bus.publish("hand_state", state_msg)
+        if not reading.stale:  # a silent hand's last state is not news: the controller's
+            self.bus.publish("hand_state", state_msg)  # state watchdog ramps the force down
         if out.model_fallbacks > self._model_fallbacks:
             self.events.append("contact model: estimate diverged, dropped (the operator feels "
                                "the measured force until a new fit)")

@@ -21,6 +21,9 @@ class HandReading:
     fingers: tuple[FingerState, FingerState, FingerState]
     preshape_rad: float
     faults: tuple[str, ...] = ()  # human-readable fault messages since the last read
+    #: no fresh measurement behind this reading (a silent brain board): the hand service
+    #: trips its watchdog and does not publish it
+    stale: bool = False
 
 
 class HandBackend(Protocol):
