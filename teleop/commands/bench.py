@@ -25,6 +25,7 @@ BENCHES: dict[str, str] = {
     "loop": "services.bench:bench_loop",
     "lockstep": "services.bench_lockstep:bench_lockstep",
     "servo": "sim.servo_emulator_bench:bench_servo",
+    "takktile": "sim.hand_emulator_bench:bench_takktile",
     "diagnose": "teleop.analysis.bench:bench_diagnose",
 }
 

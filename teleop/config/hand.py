@@ -131,10 +131,10 @@ class TakkTileConfig:
                                         "mode; 0.02 + 0.035 + 0.035 s)")
     start_timeout_s: float = param(2.0, "wait this long for the board's first state packet",
                                    unit="s", lo=0.01, hi=60.0)
-    silent_s: float = param(0.1, "no valid state packet for this long and the board is "
-                            "silent: the hand watchdog trips (4 state periods at 40 Hz)",
-                            unit="s", lo=0.01, hi=10.0)
-
+    silent_periods: float = param(4.0, "state periods without a valid state packet after "
+                                  "which the board is silent and the hand watchdog trips (the "
+                                  "board's own period, from its clock: 25 ms free, ~36 ms "
+                                  "grasping)", lo=1.0, hi=100.0)
 
 @dataclass(frozen=True, slots=True)
 class HandConfig:

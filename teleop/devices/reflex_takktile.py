@@ -23,8 +23,10 @@ with the servo mechanics of ``hand.dynamixel`` and the board's own settings in
   - 0.05 rad and sent again.
 * Malformed packets (length, magic byte, board time not moving forward) are dropped and
   counted by reason (:class:`~brain_board_packets.StateReceiver`).  No valid state for
-  ``silent_s`` (4 state periods) and every reading is ``stale`` with a fault: the hand
-  service trips its watchdog and stops publishing the stale state.
+  ``silent_periods`` (4) state periods and every reading is ``stale`` with a fault: the hand
+  service trips its watchdog and stops publishing the stale state.  The period is the
+  board's own, from the board clock of consecutive packets (filtered, 20-100 Hz), so the
+  28 Hz of a grasp does not read as silence and PC-side scheduling does not bias it.
 """
 
 from __future__ import annotations
@@ -59,6 +61,7 @@ CAL_BACKOFF_COUNTS = 50
 CAL_PROXIMAL_RAD = 0.05
 SPEED_SEQUENCE_S = (0.02, 0.035, 0.035)
 POLL_S = 0.002
+PERIOD_FILTER = 0.25  # weight of a new board-clock interval in the period estimate
 
 
 def check_takktile_config(cfg: HandConfig) -> None:
@@ -113,6 +116,7 @@ class TakkTileHand:
         self._encoder: list[int | None] = [None, None, None]
         self.proximal = [0.0] * 3
         self.silent_trips = 0
+        self.period_s = 1.0 / cfg.state_rate_hz  # the board's state period (estimated)
         self._silent = False
         self._faults: list[str] = []
 
@@ -132,7 +136,11 @@ class TakkTileHand:
         """Take in every waiting packet; returns how many valid states arrived."""
         n = 0
         for data in self.link.receive():
+            prev_us = self.rx.last_time_us
             s = self.rx.accept(data)
+            if s is not None and prev_us is not None:
+                dt = ((s.systime_us - prev_us) % (1 << 32)) * 1e-6
+                self.period_s += PERIOD_FILTER * (min(max(dt, 0.01), 0.05) - self.period_s)
             if s is not None:
                 self._use(s)
                 n += 1
@@ -237,7 +245,7 @@ class TakkTileHand:
             self._send_targets()
         now = self.clock()
         quiet = now - self.last_valid_s if self.last_valid_s is not None else float("inf")
-        stale = quiet >= self.cfg.silent_s - 1e-9
+        stale = quiet >= self.cfg.silent_periods * self.period_s - 1e-9
         if stale:
             if not self._silent:
                 self.silent_trips += 1

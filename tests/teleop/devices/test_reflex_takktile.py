@@ -122,6 +122,7 @@ def test_start_takes_the_resting_offsets_and_a_grasp_shows_pressures_and_contact
         assert f.load_units > 100
         assert f.distal_rad == pytest.approx(max(0.0, f.motor_angle_rad - f.proximal_rad))
     assert not grasp.stale and hand.rx.counts().rejected == 0
+    assert hand.period_s == pytest.approx(1 / 28, rel=0.03)  # the board's grasping rate
 
 
 class NoLoosening(TakkTileHand):
