@@ -85,3 +85,26 @@ def test_multicast_224_0_0_124_where_the_host_allows() -> None:
     assert counts.accepted >= 15 and counts.rejected == 0  # its own commands are not counted
     assert not r.stale
     assert max(abs(p) for f in r.fingers for p in f.pressure) < 15  # resting offsets gone
+
+
+@pytest.mark.network
+@pytest.mark.slow
+def test_injected_packet_faults_are_dropped_by_reason_and_the_hand_carries_on() -> None:
+    board, port = start_board_process(("--truncate-rate", "0.1", "--bad-magic-rate", "0.1",
+                                       "--late-rate", "0.1", "--late-ms", "80", "--loss", "0.1",
+                                       "--seed", "3"))
+    hand = hand_on(port, "hand.takktile.network=unicast", "hand.takktile.address=127.0.0.1")
+    try:
+        hand.start()
+        stale = 0
+        for _ in range(80):  # 2 s at the hand's 40 Hz
+            time.sleep(0.025)
+            stale += hand.read(0.0).stale
+        counts = hand.rx.counts()
+    finally:
+        hand.close()
+        stop_board_process(board)
+    assert counts.count("bad_length") > 0 and counts.count("bad_magic") > 0
+    assert counts.count("stale_time") > 0  # a late packet overtaken by newer ones
+    assert counts.accepted > 40
+    print(f"accepted {counts.accepted}, dropped {dict(counts.by_reason)}, stale reads {stale}")
