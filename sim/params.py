@@ -40,6 +40,9 @@ from dataclasses import dataclass
 # Table 4.2, model column (force N -> proximal rad) and Table 4.1 (input units -> shaft rad/s).
 TABLE_4_2_MODEL: tuple[tuple[float, float], ...] = ((15.7, 2.407), (9.8, 0.767), (6.9, 0.0),
                                                      (4.9, 0.0))
+#: Table 4.2, measured column (a protractor on the physical finger; 0.087 rad is "~5 degrees")
+TABLE_4_2_MEASURED: tuple[tuple[float, float], ...] = ((15.7, 2.35), (9.8, 0.785), (6.9, 0.087),
+                                                       (4.9, 0.0))
 TABLE_4_1_SLOPES: tuple[tuple[float, float], ...] = ((50.0, 0.06733), (100.0, 0.1781),
                                                      (200.0, 0.4240))
 JOINT_RATIO = 1.42  # motor shaft angle / driver joint angle (fingers)
@@ -105,16 +108,66 @@ def _damping_table(coulomb_units: float) -> tuple[tuple[float, float], ...]:
     return tuple((u, (u - coulomb_units) / slope) for u, slope in TABLE_4_1_SLOPES)
 
 
-def default_finger_params() -> FingerParams:
-    """The calibrated finger (base spring from Table 4.2, motor friction from Table 4.1)."""
+@dataclass(frozen=True, slots=True)
+class BaseSpringFit:
+    """A preloaded base spring fitted to a weight table: angle = max(0, F rad_per_n - preload).
+
+    ``threshold_n`` is the tendon force at which the finger leaves its open stop;
+    ``predicted_rad`` / ``residual_rad`` are per table row (predicted - table).
+    """
+
+    rad_per_n: float
+    preload_rad: float
+    threshold_n: float
+    predicted_rad: tuple[float, ...]
+    residual_rad: tuple[float, ...]
+    rms_rad: float
+
+
+def fit_base_spring(table: tuple[tuple[float, float], ...]) -> BaseSpringFit:
+    """Least squares of ``angle = F s - p`` over the rows where the finger moved (angle > 0);
+    a row at 0 that the line would lift is added as a point at 0 and the fit repeated."""
+    use = [(f, a) for f, a in table if a > 0.0]
+    while True:
+        n = len(use)
+        if n < 2:
+            raise ValueError("need at least two rows with the finger lifted")
+        if n == 2:  # the line through both (bit-identical to the original calibration)
+            (f_hi, a_hi), (f_lo, a_lo) = use
+            s = (a_hi - a_lo) / (f_hi - f_lo)
+            pre = f_hi * s - a_hi
+        else:
+            fm = sum(f for f, _ in use) / n
+            am = sum(a for _, a in use) / n
+            s = sum((f - fm) * (a - am) for f, a in use) / sum((f - fm) ** 2 for f, _ in use)
+            pre = s * fm - am
+        lifted = [(f, 0.0) for f, a in table if a <= 0.0 and s * f - pre > 0.0
+                  and (f, 0.0) not in use]
+        if not lifted:
+            break
+        use += lifted
+    pred = tuple(max(0.0, s * f - pre) for f, _ in table)
+    res = tuple(p - a for p, (_, a) in zip(pred, table, strict=True))
+    rms = math.sqrt(sum(r * r for r in res) / len(res))
+    return BaseSpringFit(s, pre, pre / s, pred, res, rms)
+
+
+#: which Table 4.2 column the base spring is calibrated on
+CALIBRATIONS: dict[str, tuple[tuple[float, float], ...]] = {
+    "model": TABLE_4_2_MODEL, "measured": TABLE_4_2_MEASURED}
+
+
+def default_finger_params(calibration: str = "model") -> FingerParams:
+    """The calibrated finger: base spring from Table 4.2 (its ``calibration`` column: the
+    report's model, as before, or the physical finger's measurements), motor friction from
+    Table 4.1."""
     r_base = JOINT_RATIO * 0.01222
-    (f_hi, a_hi), (f_lo, a_lo) = TABLE_4_2_MODEL[0], TABLE_4_2_MODEL[1]
-    rad_per_n = (a_hi - a_lo) / (f_hi - f_lo)
-    k_base = r_base / rad_per_n
-    preload = f_hi * rad_per_n - a_hi
+    fit = fit_base_spring(CALIBRATIONS[calibration])
+    k_base = r_base / fit.rad_per_n
     coulomb = 5.0
-    return FingerParams(k_base_nm_per_rad=k_base, base_preload_rad=preload, r_base_m=r_base,
-                        motor_coulomb_units=coulomb, damping_table=_damping_table(coulomb))
+    return FingerParams(k_base_nm_per_rad=k_base, base_preload_rad=fit.preload_rad,
+                        r_base_m=r_base, motor_coulomb_units=coulomb,
+                        damping_table=_damping_table(coulomb))
 
 
 def motor_damping_units(params: FingerParams, effort_units: float) -> float:

@@ -48,7 +48,7 @@ class SimHand:
     """A simulated hand implementing ``HandBackend`` (start/apply/read/safe/close)."""
 
     def __init__(self, cfg: HandConfig, seed: int = 0, effects: EffectSet | None = None) -> None:
-        fp = default_finger_params()
+        fp = default_finger_params(cfg.sim.calibration)
         if cfg.sim.model:  # refined by teleop diagnose --write-params
             from sim.finger_model_file import load_model
 

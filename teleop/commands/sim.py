@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     check_output_path(args.out, "the recording")
     check_output_path(args.json_path, "JSON")
     cfg = config_from_args(args)
-    params = default_finger_params()
+    params = default_finger_params(cfg.hand.sim.calibration)
     if cfg.hand.sim.model:  # refined by teleop diagnose --write-params; --effect adds to it
         from sim.finger_model_file import load_model
 

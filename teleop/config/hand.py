@@ -34,6 +34,10 @@ class SimHandConfig:
     engine: str = param("compiled", "physics engine: the numba-compiled step, or the Python "
                         "reference it is held to (within 1e-9 rad)",
                         choices=("compiled", "python"))
+    calibration: str = param("model", "which column of the seed's Table 4.2 (weight test) the "
+                             "finger's base spring is calibrated on: the report's model "
+                             "(2.407/0.767/0/0 rad) or the physical finger's measurements "
+                             "(2.35/0.785/0.087/0 rad)", choices=("model", "measured"))
     model: str = param("", "finger model file written by teleop diagnose --write-params "
                        "(TOML: refined finger parameters and effects); empty: the calibrated "
                        "finger")
