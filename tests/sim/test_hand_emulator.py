@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import random
 import signal
 import socket
@@ -153,7 +154,7 @@ def test_the_emulator_process_serves_states_over_udp_and_stops_on_sigterm() -> N
         sock.settimeout(1.0)
         board = (host, int(port))
         sock.sendto(encode_modes((2, 2, 2, 2)), board)
-        rx, times = StateReceiver(), []
+        rx = StateReceiver()
 
         def collect(seconds: float) -> list[float]:
             t_end, got = time.monotonic() + seconds, []
@@ -181,4 +182,15 @@ def test_the_emulator_process_serves_states_over_udp_and_stops_on_sigterm() -> N
     assert 26.0 < grasp_hz < 31.0
     assert rx.counts().rejected == 0
     assert "states" in err and "Traceback" not in err
-    del times
+
+
+def test_duration_ends_the_run_and_json_holds_the_counters(tmp_path: object,
+                                                           capsys: pytest.CaptureFixture[str]
+                                                           ) -> None:
+    out = f"{tmp_path}/emu.json"
+    assert main(["hand-emulator", "--port", "0", "--duration", "1.0", "--json", out]) == 0
+    with open(out) as fh:
+        data = json.load(fh)
+    assert 30 <= data["states"] <= 41  # 1 s at 40 Hz, fingers free
+    assert data["sent"] == 0 and data["faults"]["no_peer"] == data["states"]  # nobody asked
+    assert capsys.readouterr().out.startswith("127.0.0.1:")
