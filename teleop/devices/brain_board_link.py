@@ -20,8 +20,8 @@ def open_udp(address: str, port: int, multicast: bool, interface: str,
     """A non-blocking UDP socket bound for the brain-board protocol (either side)."""
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM, socket.IPPROTO_UDP)
     try:
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        if multicast:
+        if multicast:  # the PC and a same-host emulator both bind the group's port
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             sock.bind(("", port))
             iface = socket.inet_aton(interface or "0.0.0.0")
             sock.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP,

@@ -195,3 +195,12 @@ def test_duration_ends_the_run_and_json_holds_the_counters(tmp_path: object,
     assert 30 <= data["states"] <= 41  # 1 s at 40 Hz, fingers free
     assert data["sent"] == 0 and data["faults"]["no_peer"] == data["states"]  # nobody asked
     assert capsys.readouterr().out.startswith("127.0.0.1:")
+
+
+def test_a_taken_port_is_one_line_and_exit_2(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        assert main(["hand-emulator", "--port", str(port), "--duration", "0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--port {port}: cannot bind" in err[0]
