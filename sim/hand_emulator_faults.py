@@ -1,10 +1,11 @@
 """Fault injection for the emulated brain board's state packets (pure, seeded).
 
-Each state packet, in this order: dropped while the board is silent (``silent_after_s``,
-for ``silent_for_s``), lost (``loss``), its magic byte made wrong (``bad_magic_rate``),
-truncated to a random shorter length (``truncate_rate``), some of its bytes garbled
-(``garble_rate``: 1-8 random bytes replaced), held back by ``late_s`` so that newer packets
-overtake it (``late_rate``).  A stuck sensor reads one value whatever the physics does.
+Each state packet, in this order: dropped while the board is silent (from ``silent_after_s``
+after the first command, for ``silent_for_s``), lost (``loss``), its magic byte made wrong
+(``bad_magic_rate``), truncated to a random shorter length (``truncate_rate``), some of its
+bytes garbled (``garble_rate``: 1-8 random bytes replaced), held back by ``late_s`` so that
+newer packets overtake it (``late_rate``).  A stuck sensor reads one value whatever the
+physics does.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ class Outgoing:
 
 
 def silent(f: BoardFaults, t_s: float) -> bool:
-    """Whether the board sends nothing at ``t_s``."""
+    """Whether the board sends nothing ``t_s`` after the first command (negative: none yet)."""
     if f.silent_after_s is None or t_s < f.silent_after_s:
         return False
     return f.silent_for_s is None or t_s < f.silent_after_s + f.silent_for_s
@@ -82,7 +83,7 @@ def faulty(data: bytes, f: BoardFaults, rng: random.Random,
 
 def encode_with_faults(state: BoardState, t_s: float, f: BoardFaults, rng: random.Random,
                        held: dict[int, int], counts: dict[str, int]) -> list[Outgoing]:
-    """The datagrams the faulty board sends for ``state`` at ``t_s``."""
+    """The datagrams the faulty board sends for ``state``, ``t_s`` after the first command."""
     if silent(f, t_s):
         counts["silent"] = counts.get("silent", 0) + 1
         return []

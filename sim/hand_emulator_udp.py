@@ -52,6 +52,7 @@ class UdpBrainBoard:
         self.states = 0  # state packets made
         self.sent = 0  # datagrams sent
         self.schedule_resets = 0
+        self.first_command_s: float | None = None  # board time of the first valid command
         self._stop = False
 
     def open(self) -> tuple[str, int]:
@@ -82,6 +83,8 @@ class UdpBrainBoard:
                 self.bad_commands[exc.reason] = self.bad_commands.get(exc.reason, 0) + 1
                 continue
             self.peer = addr[:2]
+            if self.first_command_s is None:
+                self.first_command_s = t_s
             self.model.handle(pkt, t_s)
 
     def serve(self, duration_s: float | None = None) -> None:
@@ -110,8 +113,9 @@ class UdpBrainBoard:
             if t >= next_state:
                 state = self.model.state_at(t)
                 self.states += 1
-                for out in encode_with_faults(state, t, self.faults, self.rng, self.held,
-                                              self.fault_counts):
+                driven_s = -1.0 if self.first_command_s is None else t - self.first_command_s
+                for out in encode_with_faults(state, driven_s, self.faults, self.rng,
+                                              self.held, self.fault_counts):
                     heapq.heappush(queue, (t + out.delay_s, next(order), out.data))
                 next_state += self.model.period_s()
                 if t - next_state > MAX_BEHIND_S:

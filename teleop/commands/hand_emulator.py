@@ -81,7 +81,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    metavar="F:S[=V]", help="tactile sensor S (1-9) of finger F (1-3) stuck at "
                    "V (default: its reading when the run starts); repeatable")
     f.add_argument("--silent-after", type=nonneg_float, default=None, metavar="S",
-                   help="stop sending state packets after S seconds")
+                   help="stop sending state packets S seconds after the first command")
     f.add_argument("--silent-for", type=positive_float, default=None, metavar="S",
                    help="and resume after S seconds of silence (default: never)")
     f.add_argument("--seed", type=int, default=0, help="seed of the noise and fault draws")

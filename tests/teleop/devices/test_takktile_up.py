@@ -32,9 +32,12 @@ def up(tmp_path: Path, board_port: int, seconds: float) -> tuple[subprocess.Comp
 @pytest.mark.network
 @pytest.mark.slow
 def test_a_grasp_on_the_emulated_takktile_is_felt_by_the_operator(tmp_path: Path) -> None:
-    board, board_port = start_board_process()  # the default cylinder in every finger's way
+    """Grasps felt as force; then the board falls silent (7 s after the hand's first packet to
+    it) and the hand holds; the operator feels no grasp force, only the passivity layer's
+    damping."""
+    board, board_port = start_board_process(("--silent-after", "7"))  # a cylinder in the way
     try:
-        proc, rec = up(tmp_path, board_port, 7.0)
+        proc, rec = up(tmp_path, board_port, 10.0)
         assert board.poll() is None  # the emulator survived the run
     finally:
         status = stop_board_process(board)
@@ -60,5 +63,15 @@ def test_a_grasp_on_the_emulated_takktile_is_felt_by_the_operator(tmp_path: Path
     assert pressed.sum() > 100 and free.sum() > 100  # controller ticks (1 kHz)
     assert np.percentile(felt[pressed], 75) > 1.0
     assert np.median(np.abs(felt[free])) < 0.2
+    # the silent board: the hand's watchdog holds to the end, the operator feels nothing
+    end = hand.t_s > hand.t_s[-1] - 1.0
+    assert np.all(hand.column("watchdog")[end] == 1.0)
+    assert "brain board silent" in proc.stdout + proc.stderr
+    quiet = master.t_s > master.t_s[-1] - 0.5
+    assert np.all(master.column("force_command_n")[quiet] == 0.0)  # nothing from the hand
+    assert np.all(master.column("model_force_n")[quiet] == 0.0)  # nor the local model
+    damping = master.column("tlc_damping_n_s_per_m") * np.abs(master.column(
+        "trigger_velocity_m_s"))  # what remains is the tank controller's damping
+    assert np.all(np.abs(master.column("displayed_force_n")[quiet]) <= damping[quiet] + 0.01)
     print(f"felt while pressed: median {np.median(felt[pressed]):.2f} N; hand watchdog ticks "
           f"{int(hand.column('watchdog').sum())} of {len(hand)}")
