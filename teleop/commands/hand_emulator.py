@@ -63,6 +63,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="raw servo position (counts) with the finger open (default 0,0,0,0)")
     p.add_argument("--load-noise", type=nonneg_float, default=8.0, metavar="UNITS",
                    help="standard deviation of the load estimate's noise (default 8)")
+    p.add_argument("--overload-units", type=positive_float, default=1000.0, metavar="UNITS",
+                   help="servo load that, held for --overload-s, trips the overload alarm "
+                   "(error bit 5, torque off until modes are sent again; default 1000)")
+    p.add_argument("--overload-s", type=nonneg_float, default=0.2, metavar="S",
+                   help="how long the load must stay above --overload-units (default 0.2)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="S",
                    help="stop after S seconds (default: run until Ctrl-C)")
     f = p.add_argument_group("fault injection (state packets)")
@@ -124,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
     params = BoardParams(homes_counts=tuple(args.homes or (0, 0, 0, 0)),  # type: ignore[arg-type]
                          inversion=tuple(d.inversion),  # type: ignore[arg-type]
                          finger_ratio=d.finger_ratio, preshape_ratio=d.preshape_ratio,
-                         load_noise_units=args.load_noise, seed=args.seed)
+                         load_noise_units=args.load_noise, overload_units=args.overload_units,
+                         overload_s=args.overload_s, seed=args.seed)
     faults = BoardFaults(args.loss, args.late_rate, args.late_ms / 1000.0, args.truncate_rate,
                          args.garble_rate, args.bad_magic_rate, tuple(args.stuck_sensor),
                          args.silent_after, args.silent_for, args.seed)
