@@ -28,9 +28,10 @@ Definitions
     the force the hand's pressures should display, delayed by the backward path.
 
 ``tracking_hold_rad``
-    The same tracking error, RMS over the analysis segments only (the holds, once the delay has
-    passed and the loop has closed): how far the hand's closure sits from what the operator
-    commands in a steady grasp (nan without segments).
+    The same tracking error, RMS over the late half of every analysis segment (the steady
+    part of each hold: a round trip after the ramp the operator is still answering the
+    rendered contact, which reaches the hand one forward delay later): how far the hand's
+    closure sits from what the operator commands in a steady grasp (nan without segments).
 
 ``felt_true_force_ratio``
     In the steady grasp (the analysis segments): mean displayed force over the mean force the
@@ -188,11 +189,13 @@ def oscillations(s: RunSignals, c: StabilityCriteria = StabilityCriteria()
 
 
 def tracking_hold_rad(s: RunSignals) -> float:
-    """RMS of finger minus delayed set-point within the analysis segments (nan: none)."""
+    """RMS of finger minus delayed set-point in the late halves of the analysis segments
+    (nan: none)."""
     t = np.asarray(s.t_s, float)
     m = np.zeros(len(t), bool)
     for a, b in analysis_segments(s):
-        m |= (t >= a) & (t < b)
+        b = min(b, float(t[-1]) + 1e-9) if t.size else b
+        m |= (t >= 0.5 * (a + b)) & (t < b)
     if not m.any():
         return math.nan
     err = np.asarray(s.finger_rad, float) - delayed(t, np.asarray(s.setpoint_rad, float),

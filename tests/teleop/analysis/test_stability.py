@@ -262,3 +262,15 @@ def test_tracking_and_force_errors() -> None:
     m = classify_run(run(cmd, finger_rad=hand, forward_delay_s=0.25,
                          force=np.full_like(T, 2.1), force_measured_n=np.full_like(T, 2.0)))
     assert m.tracking_rms_rad < 1e-9 and m.force_rms_n == pytest.approx(0.1)
+
+
+def test_tracking_in_the_hold_is_judged_on_its_steady_half() -> None:
+    from teleop.analysis.stability import tracking_hold_rad
+
+    sp = grasp(T)
+    # the finger overshoots early in the hold, then sits 0.05 rad short of the set-point
+    finger = sp - 0.05 * (T > 1.5) + 0.3 * np.exp(-(T - SETTLE) / 0.3) * (T > SETTLE)
+    s = run(finger, setpoint_rad=sp)
+    assert tracking_hold_rad(s) == pytest.approx(0.05, abs=0.002)
+    assert classify_run(s).tracking_hold_rad == pytest.approx(0.05, abs=0.002)
+    assert math.isnan(tracking_hold_rad(run(finger, setpoint_rad=sp, settle_s=0.0)))
