@@ -56,6 +56,25 @@ def test_long_stall_skips_deadlines_instead_of_bursting() -> None:
     assert fig["x_tick_max_us"] >= fig["x_tick_p99_us"]
 
 
+def test_timing_callback_gets_every_tick_and_the_loop_keeps_none() -> None:
+    clock = VirtualClock()
+    loop = RateLoop(1000.0, clock=clock, catchup_periods=3)
+    got: list[tuple[float, float, float]] = []
+    n = [0]
+
+    def tick(t: float) -> None:
+        n[0] += 1
+        if n[0] == 2:
+            clock.advance(0.0105)
+
+    stats = loop.run(tick, duration_s=0.02, timing=lambda *a: got.append(a))
+    assert stats.ticks == len(got) == n[0] and stats.lateness_s.size == 0  # nothing kept
+    assert stats.skipped == 9 and stats.stall_ticks == (2,)
+    stalls = [s for _, _, s in got if s > 0]
+    assert stalls == [pytest.approx(0.0095)]  # the true lateness of the stall, once
+    assert got[2][1] == pytest.approx(0.0005)  # re-based lateness of that tick
+
+
 def test_without_stalls_the_max_is_the_largest_tick_lateness() -> None:
     stats = RateLoop(40.0, clock=VirtualClock()).run(lambda t: None, duration_s=1.0)
     fig = stats.figures("y")
