@@ -58,7 +58,8 @@ def growth(samples: Sequence[tuple[float, str, int, float, int]], warmup_s: floa
            ) -> list[dict[str, Any]]:
     """Per process (role, pid) from ``(t_s, role, pid, rss_mb, threads)`` samples: the RSS
     and thread count at the first sample ``warmup_s`` after its first, at the last, the
-    range, and the growth in % (None when the process did not outlive its warm-up)."""
+    range, the growth in % (None when the process did not outlive its warm-up) and the whole
+    series ``[t_s, rss_mb, threads]``."""
     by: dict[tuple[str, int], list[tuple[float, float, int]]] = {}
     for t, role, pid, rss, thr in samples:
         by.setdefault((role, pid), []).append((t, rss, thr))
@@ -73,7 +74,9 @@ def growth(samples: Sequence[tuple[float, str, int, float, int]], warmup_s: floa
                              "rss_first_mb": float(rss[0]), "rss_last_mb": float(rss[-1]),
                              "rss_max_mb": float(np.max(rss)),
                              "threads_min": int(np.min(thr)), "threads_max": int(np.max(thr)),
-                             "threads_last": int(thr[-1])}
+                             "threads_last": int(thr[-1]),
+                             "series": [[round(a, 1), round(b, 2), int(c)]
+                                        for a, b, c in zip(t, rss, thr, strict=True)]}
         if after.size >= 2:
             b = after[0]
             d |= {"rss_warm_mb": float(rss[b]),
@@ -165,8 +168,9 @@ def watchdog_share(statuses: dict[str, Sequence[dict[str, float]]], start_s: flo
 
 def grasps(master: Sequence[dict[str, float]], hand: Sequence[dict[str, float]],
            travel_m: float) -> dict[str, int]:
-    """Trigger closures past half travel (master) and contact episodes (hand)."""
-    trig = np.array([d.get("trigger_m", 0.0) for d in master]) > 0.5 * travel_m
+    """Trigger closures past a fifth of its travel (the object stops the trigger at about a
+    third) and contact episodes of the hand."""
+    trig = np.array([d.get("trigger_m", 0.0) for d in master]) > 0.2 * travel_m
     touch = np.array([d.get("contacts", 0.0) for d in hand]) > 0
     return {"closures": int(np.count_nonzero(np.diff(trig.astype(int)) > 0)),
             "contact_episodes": int(np.count_nonzero(np.diff(touch.astype(int)) > 0))}

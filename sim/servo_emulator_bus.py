@@ -97,7 +97,7 @@ class ServoBusEmulator:
                 bits |= T.P1_ERR_OVERLOAD if self.protocol == 1 else T.P2_HW_OVERLOAD
             if s.dxl_id in faults.overheat_ids:
                 bits |= T.P1_ERR_OVERHEAT if self.protocol == 1 else T.P2_HW_OVERHEAT
-            s.hw_error = bits
+            s.set_condition(bits)
         self._stale = True  # registers (temperature, hardware error status) follow
 
     # ---- physics
@@ -178,6 +178,10 @@ class ServoBusEmulator:
                 return s, s.write(addr, bytes(data)), b"", 2
             s.pending = (addr, bytes(data))
             s.poke("registered" if v1 else "registered_instruction", 1)
+            return s, 0, b"", 2
+        if i == T.INST_REBOOT and not v1:
+            s.reboot()
+            self._stale = True  # the hardware error status register follows
             return s, 0, b"", 2
         if i == T.INST_ACTION:
             if s.pending is None:
