@@ -21,6 +21,8 @@ class HandReading:
     fingers: tuple[FingerState, FingerState, FingerState]
     preshape_rad: float
     faults: tuple[str, ...] = ()  # human-readable fault messages since the last read
+    servo_fault_trips: int = 0  # times servo error bits sent the hand to its safe state
+    servo_safe: bool = False  # held safe now because of servo error bits
 
 
 class HandBackend(Protocol):

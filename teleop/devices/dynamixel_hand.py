@@ -195,7 +195,9 @@ class DynamixelHand:
         elif self.servo_fault_reason:
             self._faults.append(self.servo_fault_reason)
         faults, self._faults = tuple(dict.fromkeys(self._faults)), []
-        return HandReading(t_s, self._finger_states(), self.joint[3], faults)
+        return HandReading(t_s, self._finger_states(), self.joint[3], faults,
+                           servo_fault_trips=self.servo_fault_trips,
+                           servo_safe=bool(self.servo_fault_reason))
 
     def safe(self, mode: str) -> None:
         """Hold the present position (``"hold"``) or open the fingers (``"open"``)."""
