@@ -94,7 +94,11 @@ def test_loop_bench_summary_puts_max_and_stalls_beside_the_p99() -> None:
     assert s["lateness_p99_us"] == 400.0  # worst of master and controller (the floor's)
     assert s["lateness_max_us"] == 40_000.0 and s["stalls"] == 3.0
     assert s["lateness_max_us"] >= s["lateness_p99_us"]
-    assert s["floor_ok"] == 1.0  # the floor is on the p99; the max and stalls say the rest
+    assert s["floor_p99_ok"] == 1.0  # rate and p99 alone would pass ...
+    assert s["floor_ok"] == 0.0  # ... but the master's 25 ms stall trips the watchdogs
+    calm = figures | {"master_lateness_max_us": 900.0, "hand_lateness_max_us": 90_000.0}
+    assert loop_summary(calm)["floor_ok"] == 1.0  # (the 40 Hz hand is not floored)
+    assert loop_summary(calm | {"controller_lateness_max_us": 20_001.0})["floor_ok"] == 0.0
 
 
 @pytest.mark.slow
