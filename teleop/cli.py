@@ -26,7 +26,7 @@ from teleop.errors import DeviceError, UserInputError
 #: Subcommand modules, in the order ``teleop --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "up", "run", "sim", "sweep", "diagnose", "servo_emulator", "bench", "certs", "config",
-    "faults", "budget",
+    "faults", "budget", "watch",
 )
 
 
