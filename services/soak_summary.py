@@ -77,10 +77,13 @@ def summarise(run: Any, cfg: TeleopConfig, codes: dict[str, int], tracebacks: li
     crashes = list(run.crashes) + [f"{r} exit status {c} at the end" for r, c in
                                    bad_exit.items()] + [f"traceback in {t}" for t in tracebacks]
     warmup = min(120.0, 0.25 * run.duration_s)
-    procs = growth(run.samples, warmup)
+    floods = [(f.start_s - 1.0, f.end_s + 10.0) for f in run.faults
+              if f.kind == "malformed_flood"]
+    procs = growth(run.samples, warmup, floods)
     judged = [p for p in procs if p["rss_growth_pct"] is not None]
     worst = max((p["rss_growth_pct"] for p in judged), default=None)
     worst_thr = max((p["threads_growth_pct"] for p in judged), default=None)
+    worst_out = max((p["rss_growth_outside_pct"] for p in judged), default=None)
     audit = energy_audit(status["master"][0] if status["master"] else [],
                          status["hand"][0] if status["hand"] else [], status["controller"],
                          cfg.controller.tank.energy_scale)
@@ -95,7 +98,8 @@ def summarise(run: Any, cfg: TeleopConfig, codes: dict[str, int], tracebacks: li
         "interrupted": interrupted, "ok": ok, "crashes": crashes, "faults": faults,
         "faults_unrecovered": len(unrecovered), "flood_short": len(flood_short),
         "grasps": g, "processes": procs, "warmup_s": warmup,
-        "rss_growth_max_pct": worst, "threads_growth_max_pct": worst_thr,
+        "rss_growth_max_pct": worst, "rss_growth_outside_floods_max_pct": worst_out,
+        "threads_growth_max_pct": worst_thr,
         "growth_goal_pct": GROWTH_GOAL_PCT, "growth_judged": growth_judged,
         "latency_window_s": window, "latency": _windows(timing, merged, window, t0, end_s),
         "energy_audit": audit, "load_avg": _load(),
@@ -151,7 +155,9 @@ def verdict(doc: dict[str, Any]) -> str:
     a = doc["energy_audit"]
     audit = (f"audit {a['violations']} violations, min margin {a['min_margin_j']:.2f} J"
              if a["audited"] else "no audit")
-    growth = (f"RSS growth max {_fmt(doc['rss_growth_max_pct'], ' %')}, threads "
+    growth = (f"RSS growth max {_fmt(doc['rss_growth_max_pct'], ' %')} "
+              f"({_fmt(doc['rss_growth_outside_floods_max_pct'], ' %')} outside the floods), "
+              f"threads "
               f"{_fmt(doc['threads_growth_max_pct'], ' %')}"
               + ("" if doc["growth_judged"] else " (not judged under 10 min)"))
     return (f"soak {'PASS' if doc['ok'] else 'FAIL'}: {doc['ran_s'] / 60:.1f} min, "
@@ -183,7 +189,8 @@ def soak_table(doc: dict[str, Any]) -> str:
     for p in doc["processes"]:
         lines.append(f"  {p['role']:10s} pid {p['pid']:7d} {p['start_s']:7.0f}-"
                      f"{p['end_s']:5.0f} s  RSS {p['rss_first_mb']:.0f} -> "
-                     f"{p['rss_last_mb']:.0f} MB ({_fmt(p['rss_growth_pct'], ' %')})  threads "
+                     f"{p['rss_last_mb']:.0f} MB ({_fmt(p['rss_growth_pct'], ' %')}; "
+                     f"{_fmt(p['rss_growth_outside_pct'], ' %')} outside floods)  threads "
                      f"{p['threads_min']}-{p['threads_max']} "
                      f"({_fmt(p['threads_growth_pct'], ' %')})")
     lines.append("faults:")

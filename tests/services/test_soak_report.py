@@ -52,6 +52,13 @@ def test_growth_is_measured_after_the_warm_up() -> None:
     assert growth(leak, 20.0)[0]["rss_growth_pct"] > 10.0
     short = growth([(0.0, "c", 2, 50.0, 9), (5.0, "c", 2, 60.0, 9)], 20.0)[0]
     assert short["rss_growth_pct"] is None
+    # a 20 MB step inside an excluded window (a flood) counts only in the plain growth
+    step = [(t, "hand", 1, 100.0 + (20.0 if t >= 50 else 0.0) + 0.01 * t, 10)
+            for t in range(0, 100, 5)]
+    g = growth(step, 20.0, [(48.0, 52.0)])[0]
+    assert g["rss_growth_pct"] > 19.0
+    # (two 5 s intervals touch the window: 65 s of the 75 after warm-up count)
+    assert g["rss_growth_outside_pct"] == pytest.approx(100 * 0.01 * 65 / 100.2, rel=1e-6)
 
 
 def _status(t: np.ndarray, wd: np.ndarray) -> list[dict[str, float]]:
