@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 
 GROWTH_GOAL_PCT = 10.0
+ROBUST_SAMPLES = 5  # growth compares medians of this many samples (a 10 MB spike that comes
+#                     and goes within seconds is not growth)
 
 
 def latency_windows(timing: dict[str, list[np.ndarray]], window_s: float, start_s: float,
@@ -32,9 +34,12 @@ def latency_windows(timing: dict[str, list[np.ndarray]], window_s: float, start_
     that role (a restarted controller has several)."""
     out: list[dict[str, Any]] = []
     n = max(1, math.ceil((end_s - start_s) / window_s - 1e-9))
+    if n > 1 and end_s - (start_s + (n - 1) * window_s) < 0.5 * window_s:
+        n -= 1  # a short tail (the stop) joins the last full window
     joined = {r: np.concatenate(a) if a else np.empty(0) for r, a in timing.items()}
     for k in range(n):
-        t0, t1 = start_s + k * window_s, min(start_s + (k + 1) * window_s, end_s)
+        t0 = start_s + k * window_s
+        t1 = end_s if k == n - 1 else t0 + window_s
         row: dict[str, Any] = {"start_s": t0, "end_s": t1}
         for role, rec in joined.items():
             sel = rec[(rec["t_s"] >= t0) & (rec["t_s"] < t1)] if rec.size else rec
@@ -57,9 +62,10 @@ def latency_windows(timing: dict[str, list[np.ndarray]], window_s: float, start_
 def growth(samples: Sequence[tuple[float, str, int, float, int]], warmup_s: float,
            exclude: Sequence[tuple[float, float]] = ()) -> list[dict[str, Any]]:
     """Per process (role, pid) from ``(t_s, role, pid, rss_mb, threads)`` samples: the RSS
-    and thread count at the first sample ``warmup_s`` after its first, at the last, the
-    range, the growth in % (None when the process did not outlive its warm-up) and the whole
-    series ``[t_s, rss_mb, threads]``.
+    and thread count after warm-up (the median of the :data:`ROBUST_SAMPLES` samples from
+    ``warmup_s`` after its first), at the end (the median of the last ones), the range, the
+    growth in % between the two (None when the process did not outlive its warm-up by that
+    many samples) and the whole series ``[t_s, rss_mb, threads]``.
 
     ``rss_growth_outside_pct``: the same growth counting only the sampling intervals that
     overlap none of the ``exclude`` windows (the malformed floods: a zenoh receiver keeps
@@ -82,17 +88,22 @@ def growth(samples: Sequence[tuple[float, str, int, float, int]], warmup_s: floa
                              "threads_last": int(thr[-1]),
                              "series": [[round(a, 1), round(b, 2), int(c)]
                                         for a, b, c in zip(t, rss, thr, strict=True)]}
-        if after.size >= 2:
+        k = ROBUST_SAMPLES
+        if after.size >= 2 * k:
             b = after[0]
+            warm, end = float(np.median(rss[b:b + k])), float(np.median(rss[-k:]))
+            thr_warm, thr_end = float(np.median(thr[b:b + k])), float(np.median(thr[-k:]))
             steps = np.diff(rss[b:])
             inside = [any(lo <= t1 and t0 <= hi for lo, hi in exclude)
                       for t0, t1 in zip(t[b:-1], t[b + 1:], strict=True)]
-            outside = float(np.sum(steps[~np.asarray(inside, dtype=bool)])) if steps.size else 0.0
-            d |= {"rss_warm_mb": float(rss[b]),
-                  "rss_growth_outside_pct": 100.0 * outside / float(rss[b]),
-                  "rss_growth_pct": float(100.0 * (rss[-1] - rss[b]) / rss[b]),
-                  "threads_warm": int(thr[b]),
-                  "threads_growth_pct": float(100.0 * (thr[-1] - thr[b]) / thr[b])}
+            in_floods = float(np.sum(steps[np.asarray(inside, dtype=bool)])) if steps.size \
+                else 0.0
+            d |= {"rss_warm_mb": warm, "rss_end_mb": end,
+                  "rss_growth_pct": 100.0 * (end - warm) / warm,
+                  "rss_in_floods_mb": in_floods,
+                  "rss_growth_outside_pct": 100.0 * (end - warm - in_floods) / warm,
+                  "threads_warm": thr_warm,
+                  "threads_growth_pct": 100.0 * (thr_end - thr_warm) / thr_warm}
         else:
             d |= {"rss_growth_pct": None, "rss_growth_outside_pct": None,
                   "threads_growth_pct": None}

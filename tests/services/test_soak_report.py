@@ -33,6 +33,8 @@ def test_latency_window_max_includes_the_stall_the_p99_does_not() -> None:
     assert w[1]["master"]["p99_us"] == pytest.approx(50.0, rel=1e-3)
     assert w[1]["master"]["max_us"] == pytest.approx(400_000.0, rel=1e-3)
     assert w[0]["master"]["max_us"] == pytest.approx(50.0, rel=1e-3)
+    tail = latency_windows({"master": [_timing(t, late, stall)]}, 9.0, 0.0, 20.0)
+    assert [(x["start_s"], x["end_s"]) for x in tail] == [(0.0, 9.0), (9.0, 20.0)]
 
 
 def test_latency_windows_leave_out_the_start_up() -> None:
@@ -42,23 +44,26 @@ def test_latency_windows_leave_out_the_start_up() -> None:
     assert len(w) == 1 and w[0]["hand"]["max_us"] < 200.0
 
 
-def test_growth_is_measured_after_the_warm_up() -> None:
+def test_growth_is_measured_after_the_warm_up_on_medians() -> None:
     samples = [(t, "hand", 1, 50.0 + (40.0 if t >= 10 else 0.0) + 0.1 * t, 10)
                for t in range(0, 100, 5)]
     g = growth(samples, warmup_s=20.0)[0]
-    assert g["rss_warm_mb"] == pytest.approx(92.0)
-    assert g["rss_growth_pct"] == pytest.approx(100 * (99.5 - 92.0) / 92.0)
+    assert g["rss_warm_mb"] == pytest.approx(93.0)  # median of t = 20 ... 40 s
+    assert g["rss_end_mb"] == pytest.approx(98.5)  # median of the last five
+    assert g["rss_growth_pct"] == pytest.approx(100 * 5.5 / 93.0)
     leak = [(t, "hand", 1, 50.0 + t, 10) for t in range(0, 100, 5)]
     assert growth(leak, 20.0)[0]["rss_growth_pct"] > 10.0
-    short = growth([(0.0, "c", 2, 50.0, 9), (5.0, "c", 2, 60.0, 9)], 20.0)[0]
-    assert short["rss_growth_pct"] is None
+    spike = [(t, "m", 1, 60.0 + (12.0 if t in (50, 55) else 0.0), 10) for t in range(0, 100, 5)]
+    assert growth(spike, 20.0)[0]["rss_growth_pct"] == 0.0  # up and down again: no growth
+    short = growth([(float(t), "c", 2, 50.0 + t, 9) for t in range(0, 60, 5)], 20.0)[0]
+    assert short["rss_growth_pct"] is None  # fewer than 2 x 5 samples after warm-up
     # a 20 MB step inside an excluded window (a flood) counts only in the plain growth
     step = [(t, "hand", 1, 100.0 + (20.0 if t >= 50 else 0.0) + 0.01 * t, 10)
             for t in range(0, 100, 5)]
     g = growth(step, 20.0, [(48.0, 52.0)])[0]
-    assert g["rss_growth_pct"] > 19.0
-    # (two 5 s intervals touch the window: 65 s of the 75 after warm-up count)
-    assert g["rss_growth_outside_pct"] == pytest.approx(100 * 0.01 * 65 / 100.2, rel=1e-6)
+    assert g["rss_growth_pct"] == pytest.approx(100 * 20.55 / 100.3)
+    assert g["rss_in_floods_mb"] == pytest.approx(20.1)  # two 5 s intervals touch the window
+    assert g["rss_growth_outside_pct"] == pytest.approx(100 * 0.45 / 100.3)
 
 
 def _status(t: np.ndarray, wd: np.ndarray) -> list[dict[str, float]]:
