@@ -14,14 +14,16 @@ from services.soak_summary import summarise
 from teleop.config import load_config
 
 
-def _write(work: Path, role: str, pid: int, *, deficit: bool = False) -> None:
+def _write(work: Path, role: str, pid: int, *, deficit: bool = False,
+           stuck_after_s: float = 99.0) -> None:
     log = SoakLog(work, role, pid, epoch_s=100.0, rate_hz=100.0)
     for k in range(3000):  # 30 s at 100 Hz: status lines at 10 Hz
         t = 100.0 + k / 100.0
         log.timing(t, 1e-4, 0.0)
         if log.due():
             rel = t - 100.0
-            wd = 1.0 if 10.0 <= rel < 11.5 else 0.0  # every watchdog trips during a fault
+            # every watchdog trips during a fault (and stays tripped after ``stuck_after_s``)
+            wd = 1.0 if 10.0 <= rel < 11.5 or rel >= stuck_after_s else 0.0
             rejects = 0 if rel < 20.0 or role == "master" else 3000  # a flood at 20 s
             audit = None
             if role in ("master", "hand"):
@@ -62,8 +64,6 @@ def test_a_clean_run_passes_and_says_so_in_one_line(run: SoakRun) -> None:
 def test_each_failure_fails_the_verdict(run: SoakRun, tmp_path: Path) -> None:
     crashed = replace(run, crashes=["hand exited with 1 at 12.0 s"])
     assert not _doc(crashed)["ok"] and "1 crashes" in _doc(crashed)["verdict"]
-    late = replace(run, faults=[Fault("link_cut", "hand", 29.0, 29.9)])  # never clear again?
-    assert _doc(late)["ok"]  # ... it is: the lines after 29.9 s are clear
     short = replace(run, faults=[*run.faults[:1], replace(run.faults[1], injected=10_000)])
     assert not _doc(short)["ok"]  # 6000 of 10000 rejected
     for p in tmp_path.glob("master-*"):
@@ -71,3 +71,11 @@ def test_each_failure_fails_the_verdict(run: SoakRun, tmp_path: Path) -> None:
     _write(tmp_path, "master", 1, deficit=True)  # the operator gets more than was put in
     doc = _doc(run)
     assert doc["energy_audit"]["violations"] > 0 and not doc["ok"]
+    for p in tmp_path.glob("*-*.*"):
+        p.unlink()
+    for pid, role in enumerate(("master", "controller", "hand")):
+        _write(tmp_path, role, pid + 1, stuck_after_s=25.0 if role == "hand" else 99.0)
+    stuck = replace(run, faults=[Fault("link_cut", "hand", 24.0, 25.0)])
+    doc = _doc(stuck)  # the hand's watchdog never clears after the cut
+    assert doc["faults"][0]["recovery_s"] is None and doc["faults_unrecovered"] == 1
+    assert not doc["ok"] and "1 unrecovered" in doc["verdict"]
