@@ -29,12 +29,12 @@ ROLES = ("master", "controller", "hand")
 def _logs(work: Path, suffix: str) -> dict[str, list[Path]]:
     """Per role, its processes' files in start order (pid order is not start order)."""
     out: dict[str, list[Path]] = {r: [] for r in ROLES}
-    for p in sorted(work.glob(f"*{suffix}"), key=lambda q: q.stat().st_mtime):
+    for p in work.glob(f"*{suffix}"):
         role = p.stem.split("-")[0]
         if role in out:
             out[role].append(p)
-    for r in out:  # by first write: the first status line's time
-        out[r].sort(key=lambda q: _first_t(q))
+    for r in out:  # by the first status line's time
+        out[r].sort(key=_first_t)
     return out
 
 
