@@ -37,6 +37,7 @@ class FaultConfig:
     overload_ids: tuple[int, ...] = ()  # servos reporting the overload error bit
     overheat_ids: tuple[int, ...] = ()  # servos reporting overheat (and 85 deg C)
     seed: int = 0
+    voltage_ids: tuple[int, ...] = ()  # servos reporting the input voltage error bit
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,6 +98,8 @@ class ServoBusEmulator:
                 bits |= T.P1_ERR_OVERLOAD if self.protocol == 1 else T.P2_HW_OVERLOAD
             if s.dxl_id in faults.overheat_ids:
                 bits |= T.P1_ERR_OVERHEAT if self.protocol == 1 else T.P2_HW_OVERHEAT
+            if s.dxl_id in faults.voltage_ids:
+                bits |= T.P1_ERR_VOLTAGE if self.protocol == 1 else T.P2_HW_VOLTAGE
             s.set_condition(bits)
         self._stale = True  # registers (temperature, hardware error status) follow
 

@@ -128,8 +128,9 @@ def test_serial_faults_are_retried_then_the_hand_goes_safe(
         emu.stop()
 
 
-@pytest.mark.parametrize("protocol", [1, 2])
-def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int) -> None:
+@pytest.mark.parametrize("protocol, kind", [(1, "overload"), (2, "overload"),
+                                            (1, "input voltage")])
+def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int, kind: str) -> None:
     emu = emulator(protocol, physics="simple")
     hand = build_dynamixel_hand(config(emu, reboot_after_s=0.5))
     servo_id = hand.cfg.ids[1]  # finger 2
@@ -138,17 +139,19 @@ def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int) -> 
         hand.start()
         run_for(hand, command(0.3), 0.3)
         assert hand.servo_fault_trips == 0 and not hand.servo_fault_reason
-        emu.bus.faults = FaultConfig(overload_ids=(servo_id,))
+        emu.bus.faults = (FaultConfig(overload_ids=(servo_id,)) if kind == "overload"
+                          else FaultConfig(voltage_ids=(servo_id,)))
         faults = hand.read(0.0).faults
         assert hand.servo_fault_trips == 1
-        assert f"servo {servo_id} overload" in hand.servo_fault_reason
-        assert any("safe state" in f and f"servo {servo_id} overload" in f for f in faults)
+        assert f"servo {servo_id} {kind}" in hand.servo_fault_reason
+        assert any("safe state" in f and f"servo {servo_id} {kind}" in f for f in faults)
         held = [s.peek("goal_position") for s in emu.bus.servos]
         run_for(hand, command(1.0, preshape=0.5), 0.3)  # ignored while the bit is set
         assert [s.peek("goal_position") for s in emu.bus.servos] == held
         assert hand.servo_fault_trips == 1  # one episode, however many readings
         assert any("safe state" in f for f in hand.read(0.5).faults)
-        assert servo.peek("torque_enable") == 0  # the servo's own alarm shutdown
+        # the servo's own alarm shutdown (overload is in its default shutdown mask; voltage not)
+        assert servo.peek("torque_enable") == (0 if kind == "overload" else 1)
         reboots = servo.reboots  # (a reboot while the cause is present changes nothing)
         emu.bus.faults = FaultConfig()  # the overload clears
         faults = hand.read(1.0).faults
