@@ -106,3 +106,16 @@ def test_real_clock_holds_1khz() -> None:
     stats = RateLoop(1000.0, clock=MonotonicClock()).run(lambda t: None, duration_s=0.5)
     assert abs(stats.ticks + stats.skipped - 500) <= 1  # every deadline ticked or skipped
     assert stats.lateness_percentile_s(50) < 200e-6  # (this machine is shared: no tail bound)
+
+
+def test_a_service_keeps_per_tick_timing_only_for_stats_json() -> None:
+    """``teleop up`` grew 6 MB a minute per 1 kHz service while the loop kept every tick's
+    timing for nobody: now the timing goes nowhere unless ``--stats-json`` reads it."""
+    from services.process import ServiceOptions, _timing_sink
+
+    sink = _timing_sink(None, ServiceOptions("master"))
+    assert sink is not None  # a callback: the loop keeps nothing
+    stats = RateLoop(1000.0, clock=VirtualClock()).run(lambda t: None, duration_s=0.5,
+                                                       timing=sink)
+    assert stats.ticks == 500 and stats.lateness_s.size == 0 and stats.tick_s.size == 0
+    assert _timing_sink(None, ServiceOptions("master", stats_path="s.json")) is None
