@@ -244,14 +244,14 @@ def run_soak(config: Path | None, overrides: list[str], minutes: float, *,
              progress: Callable[[str], None] | None = None,
              work_dir: Path | None = None) -> dict[str, Any]:
     """Run a soak; the JSON document (see :func:`services.soak_summary.summarise`)."""
-    from services.faults_live import _free_port
+    from services.bench import free_port
     from services.soak_summary import summarise
 
     say = progress or (lambda _text: None)
     with contextlib.ExitStack() as stack:
         work = work_dir or Path(stack.enter_context(
             tempfile.TemporaryDirectory(prefix="teleop-soak-")))
-        soak = Soak(config, overrides, realtime=realtime, port=_free_port(), work=work)
+        soak = Soak(config, overrides, realtime=realtime, port=free_port(), work=work)
         duration = minutes * 60.0
         codes: dict[str, int] = {}
         stopped: dict[str, Any] = {"flag": False}
