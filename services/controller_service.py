@@ -69,6 +69,9 @@ class ControllerService:
             assert isinstance(msg, HandState)
             if self.hand is not None and msg.header.seq > self.hand.header.seq + 1:
                 self.hand_dropped += msg.header.seq - self.hand.header.seq - 1
+            if msg.servo_safe and not (self.hand is not None and self.hand.servo_safe):
+                self.events.append(f"hand: servo error bits, the hand holds its safe state "
+                                   f"(episode {msg.servo_fault_trips})")
             self.hand, h_delay, got_hand = msg, r.delay_s, True
         prev = self.wd
         self.wd = watchdog_step(self.wd, self.wd_params, t_s, got_hand, self.bus.alive("hand"),
@@ -97,7 +100,8 @@ class ControllerService:
             master_dropped=float(self.master_dropped), hand_dropped=float(self.hand_dropped),
             watchdog=float(self.wd.tripped), force_gain=out.force_gain,
             round_trip_s=out.round_trip_s,
-            measured_force_n=combined_force_n(out.max_pressure, self.params))
+            measured_force_n=combined_force_n(out.max_pressure, self.params),
+            hand_servo_fault_trips=float(self.hand.servo_fault_trips) if self.hand else 0.0)
 
     def close(self) -> None:
         """Nothing to release."""

@@ -205,7 +205,8 @@ class HandService:
             header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
             fingers=reading.fingers, preshape_rad=reading.preshape_rad,
             echo_t_s=self.command.header.t_s if self.command is not None else -1.0,
-            echo_held_s=self._held_s(t_s), contact_model=out.contact_model)
+            echo_held_s=self._held_s(t_s), contact_model=out.contact_model,
+            servo_fault_trips=reading.servo_fault_trips, servo_safe=reading.servo_safe)
         if not reading.stale:  # a silent hand's last state is not news: the controller's
             self.bus.publish("hand_state", state_msg)  # state watchdog ramps the force down
         if out.model_fallbacks > self._model_fallbacks:
@@ -234,7 +235,9 @@ class HandService:
             spring_energy_j=out.spring_energy_j, limited=float(out.limited),
             limit_count=float(self.limit_count), delay_s=self.delay_s if got else math.nan,
             dropped=float(self.dropped), watchdog=float(self.wd.tripped),
-            model_fallbacks=float(out.model_fallbacks))
+            model_fallbacks=float(out.model_fallbacks),
+            servo_fault_trips=float(reading.servo_fault_trips),
+            servo_safe=float(reading.servo_safe))
 
     def close(self) -> None:
         """Go safe and release the hand."""

@@ -114,7 +114,8 @@ class Launcher:
         say(f"dashboard saved to {self.path}; open it with: rerun {self.path}")
 
     # -- processes ------------------------------------------------------------------------
-    def _command(self, role: str, epoch: float) -> list[str]:
+    def command(self, role: str, epoch: float) -> list[str]:
+        """The command line of ``role``'s child process."""
         cmd = [sys.executable, "-m", "teleop.cli", "run", role, *self.passthrough,
                "--dashboard", self._child_dashboard(role), "--recording-id", self.recording_id,
                "--epoch", repr(epoch), "--watch-stdin", "--wait-peers", repr(READY_TIMEOUT_S)]
@@ -136,7 +137,7 @@ class Launcher:
                 print(f"[{role}] {text}", flush=True)
 
     def _spawn(self, role: str, epoch: float) -> None:
-        proc = subprocess.Popen(self._command(role, epoch), stdin=subprocess.PIPE,
+        proc = subprocess.Popen(self.command(role, epoch), stdin=subprocess.PIPE,
                                 stdout=subprocess.PIPE, text=True, bufsize=1,
                                 start_new_session=True)
         self.procs[role] = proc

@@ -52,6 +52,7 @@ class ServiceOptions:
     stats_path: str | None = None  # write the loop's timing figures as JSON here
     peer_timeout_s: float | None = 30.0  # None: wait for peers forever
     realtime: bool = True  # try SCHED_FIFO (the 1 kHz loops above the hand's)
+    soak_dir: str | None = None  # write tick timing and status lines here (services.soak_log)
 
 
 def build_backend(role: str, cfg: TeleopConfig) -> Any:
@@ -124,6 +125,30 @@ def _wait_for_peers(bus: Any, role: str, loop: RateLoop, timeout_s: float | None
     return False
 
 
+def _discard(_deadline_s: float, _late_s: float, _stall_s: float) -> None:
+    """Tick timing nobody reads."""
+
+
+def _timing_sink(soak: Any, opts: ServiceOptions) -> Any:
+    """Where the loop's per-tick timing goes: the soak log; the returned stats (kept in
+    memory, 64 kB/s at 1 kHz) only when ``--stats-json`` reads them; otherwise nowhere, so
+    a service runs for hours at flat memory (it grew 6 MB a minute before)."""
+    if soak is not None:
+        return soak.timing
+    return None if opts.stats_path else _discard
+
+
+def _soak_log(opts: ServiceOptions, role: str, rate_hz: float, now_s: float) -> Any:
+    if opts.soak_dir is None:
+        return None
+    import os
+
+    from services.soak_log import SoakLog
+
+    epoch = opts.epoch_s if opts.epoch_s is not None else now_s
+    return SoakLog(Path(opts.soak_dir), role, os.getpid(), epoch, rate_hz)
+
+
 def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
     """Run one service until stopped; exit status."""
     from teleop.transport.clock import MonotonicClock
@@ -178,6 +203,8 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
             return 0 if loop.stop_event.is_set() else 1
         tel = telemetry
         is_hand = role == "hand"
+        soak = _soak_log(opts, role, rate, clock.now_s())
+        audit_source = getattr(backend, "port_audit_j", None)
 
         last: list[Any] = [None]  # the latest sample, for the status line
 
@@ -186,6 +213,14 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         def tick(t_s: float) -> None:
             last[0] = svc.tick(t_s)
             tel.emit(last[0], svc.events, svc.last_reading if is_hand else None)
+            if soak is not None and soak.due():
+                led = getattr(svc, "ledger", None)
+                smp = last[0]
+                extra = ({"trigger_m": smp.trigger_position_m} if role == "master" else
+                         {"contacts": float(sum(smp.contacts))} if is_hand else {})
+                soak.status(t_s, smp.watchdog, bus.stats().rejects.rejected,
+                            led.initial_j if led is not None else 0.0,
+                            audit_source() if audit_source is not None else None, **extra)
             if role == "controller":
                 for k, d in enumerate((last[0].master_delay_s, last[0].hand_delay_s)):
                     if math.isfinite(d):
@@ -213,9 +248,12 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
                     print(status_line(last[0], t_s - t_start[0], delays[0], delays[1]), flush=True)
 
         try:
-            stats = loop.run(tick_gc, duration_s=opts.duration_s)
+            stats = loop.run(tick_gc, duration_s=opts.duration_s,
+                             timing=_timing_sink(soak, opts))
         finally:
             gc.enable()
+            if soak is not None:
+                soak.close()
         return 0
     finally:
         try:

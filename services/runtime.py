@@ -110,8 +110,14 @@ class RateLoop:
         return wait_until(self.clock, deadline, self.spin_s)
 
     def run(self, tick: Callable[[float], None], duration_s: float | None = None,
-            should_stop: Callable[[], bool] | None = None) -> LoopStats:
-        """Tick until :meth:`stop`, ``should_stop()`` or ``duration_s``; return the timing."""
+            should_stop: Callable[[], bool] | None = None,
+            timing: Callable[[float, float, float], None] | None = None) -> LoopStats:
+        """Tick until :meth:`stop`, ``should_stop()`` or ``duration_s``; return the timing.
+
+        ``timing(deadline_s, lateness_s, stall_lateness_s)`` (``stall_lateness_s`` 0 unless the
+        tick ended a stall), when given, gets every tick's timing instead of the returned
+        :class:`LoopStats` (whose arrays are then empty): memory stays flat however long the
+        loop runs (``teleop faults --soak``)."""
         start = self.clock.now_s()
         end = math.inf if duration_s is None else start + duration_s
         lateness: list[float] = []
@@ -119,6 +125,7 @@ class RateLoop:
         stalls: list[int] = []
         stall_late: list[float] = []
         durations: list[float] = []
+        n_ticks = 0  # ticks reported through ``timing`` (not kept)
         k = 0
         while not self.stop_event.is_set():
             deadline = start + k * self.period_s
@@ -126,22 +133,29 @@ class RateLoop:
                 break
             now = self._wait_until(deadline)
             late = now - deadline
+            stall_s = 0.0
             if late > self.catchup_periods * self.period_s:  # long stall: drop deadlines
                 missed = int(late // self.period_s)
                 skipped += missed
-                stalls.append(len(lateness))
+                stalls.append(len(lateness) + n_ticks)
                 stall_late.append(late)
+                stall_s = late
                 k += missed
                 deadline = start + k * self.period_s
                 late = now - deadline
-            lateness.append(late)
+            if timing is None:
+                lateness.append(late)
+            else:
+                n_ticks += 1
+                timing(deadline, late, stall_s)
             tick(deadline)
-            durations.append(self.clock.now_s() - now)
+            if timing is None:
+                durations.append(self.clock.now_s() - now)
             k += 1
             if should_stop is not None and should_stop():
                 break
         elapsed = self.clock.now_s() - start
-        return LoopStats(rate_hz=self.rate_hz, ticks=len(lateness), skipped=skipped,
+        return LoopStats(rate_hz=self.rate_hz, ticks=len(lateness) + n_ticks, skipped=skipped,
                          elapsed_s=elapsed, lateness_s=np.asarray(lateness, dtype=float),
                          stall_ticks=tuple(stalls), stall_lateness_s=tuple(stall_late),
                          tick_s=np.asarray(durations, dtype=float))

@@ -63,6 +63,7 @@ class ControllerSample:
     force_gain: float = 1.0  # delay-aware force-feedback gain in use
     round_trip_s: float = float("nan")  # measured round trip the gain is scheduled on
     measured_force_n: float = float("nan")  # the hand's pressures through the force map, gain 1
+    hand_servo_fault_trips: float = 0.0  # the hand's servo-error safe-state episodes (HandState)
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,6 +93,8 @@ class HandSample:
     dropped: float
     watchdog: float  # 1 while the command watchdog is tripped
     model_fallbacks: float = 0.0  # contact estimates dropped as diverged so far
+    servo_fault_trips: float = 0.0  # servo error bits sent the hand safe this often so far
+    servo_safe: float = 0.0  # 1 while held safe because of servo error bits
 
 
 Sample = MasterSample | ControllerSample | HandSample

@@ -44,7 +44,9 @@ class EmulatedServo:
         self.poke("present_position", home_counts)
         self.poke("goal_position", home_counts)
         self.pending: tuple[int, bytes] | None = None  # REG_WRITE buffer
-        self.hw_error = 0  # P1 error bits / P2 hardware error status bits (injected)
+        self.hw_error = 0  # P1 error bits / P2 hardware error status bits (reported)
+        self.hw_condition = 0  # the injected cause; P2 latches it in hw_error until REBOOT
+        self.reboots = 0
 
     # ---- raw table access
     def peek(self, name: str) -> int:
@@ -180,6 +182,20 @@ class EmulatedServo:
             self.poke("hardware_error_status", self.hw_error)
         if self.hw_error & self.peek("shutdown"):
             self.poke("torque_enable", 0)  # alarm shutdown, like the real servo
+
+    def set_condition(self, bits: int) -> None:
+        """The hardware fault conditions now present: P1.0 reports exactly these; P2.0
+        latches them in the hardware error status, which only :meth:`reboot` clears."""
+        self.hw_condition = bits
+        self.hw_error = bits if self.protocol == 1 else self.hw_error | bits
+
+    def reboot(self) -> None:
+        """REBOOT (P2.0): the error status restarts from the conditions still present, the
+        RAM area (torque) from its defaults: torque off."""
+        self.reboots += 1
+        self.hw_error = self.hw_condition
+        self.poke("torque_enable", 0)
+        self.pending = None
 
     def status_error(self, instr_error: int = 0) -> int:
         """The error byte of a status packet."""

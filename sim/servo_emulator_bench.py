@@ -85,6 +85,11 @@ def _cycle_times_us(protocol: int, cycles: int, bulk: bool = False) -> tuple[np.
         stop_emulator_process(proc)
 
 
+#: a bus cycle longer than this counts as a stall (``*_stalls``, beside every p99 and max):
+#: the services' watchdog timeout, most of the hand's 25 ms period
+STALL_US = 20_000.0
+
+
 def bench_servo(cycles: int = 1000) -> dict[str, float]:
     """Cycle-time figures for four servos: Protocol 1.0 (single READs and BULK_READ), 2.0."""
     out: dict[str, float] = {"servos": float(len(IDS)), "cycles": float(cycles)}
@@ -93,6 +98,7 @@ def bench_servo(cycles: int = 1000) -> dict[str, float]:
         out[pre + "p50_us"] = float(np.percentile(t, 50))
         out[pre + "p99_us"] = float(np.percentile(t, 99))
         out[pre + "max_us"] = float(t.max())
+        out[pre + "stalls"] = float(np.count_nonzero(t > STALL_US))
         out[pre + "cycles_per_s"] = float(1e6 / t.mean())
         out[pre + "failed_attempts"] = float(failed)
         nbytes = wire_bytes_per_cycle(protocol, bulk=bulk)
@@ -100,6 +106,6 @@ def bench_servo(cycles: int = 1000) -> dict[str, float]:
         baud = 57142 if protocol == 1 else 57600
         out[pre + f"wire_time_at_{baud}_baud_us"] = nbytes * 10 / baud * 1e6
     # the headline figures: the ReFlex's own arrangement (Protocol 1.0, one READ per servo)
-    for key in ("p50_us", "p99_us", "cycles_per_s"):
+    for key in ("p50_us", "p99_us", "max_us", "stalls", "cycles_per_s"):
         out[key] = out["p1_" + key]
     return out

@@ -37,6 +37,7 @@ class FaultConfig:
     overload_ids: tuple[int, ...] = ()  # servos reporting the overload error bit
     overheat_ids: tuple[int, ...] = ()  # servos reporting overheat (and 85 deg C)
     seed: int = 0
+    voltage_ids: tuple[int, ...] = ()  # servos reporting the input voltage error bit
 
 
 @dataclass(frozen=True, slots=True)
@@ -97,7 +98,9 @@ class ServoBusEmulator:
                 bits |= T.P1_ERR_OVERLOAD if self.protocol == 1 else T.P2_HW_OVERLOAD
             if s.dxl_id in faults.overheat_ids:
                 bits |= T.P1_ERR_OVERHEAT if self.protocol == 1 else T.P2_HW_OVERHEAT
-            s.hw_error = bits
+            if s.dxl_id in faults.voltage_ids:
+                bits |= T.P1_ERR_VOLTAGE if self.protocol == 1 else T.P2_HW_VOLTAGE
+            s.set_condition(bits)
         self._stale = True  # registers (temperature, hardware error status) follow
 
     # ---- physics
@@ -178,6 +181,10 @@ class ServoBusEmulator:
                 return s, s.write(addr, bytes(data)), b"", 2
             s.pending = (addr, bytes(data))
             s.poke("registered" if v1 else "registered_instruction", 1)
+            return s, 0, b"", 2
+        if i == T.INST_REBOOT and not v1:
+            s.reboot()
+            self._stale = True  # the hardware error status register follows
             return s, 0, b"", 2
         if i == T.INST_ACTION:
             if s.pending is None:

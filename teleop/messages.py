@@ -19,7 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
-SCHEMA_VERSION = 3  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: contact models
+SCHEMA_VERSION = 4  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: contact models;
+#                    4: servo_fault_trips, servo_safe in HandState
 #: a contact model per finger travels as ``(contact_rad, stiffness)`` pairs, fingers 1-3
 #: flattened; stiffness 0 = no model for that finger
 NO_MODEL = (0.0,) * 6
@@ -118,6 +119,10 @@ class HandState:
     #: which the finger meets the object and the settled peak pressure per rad beyond it
     #: (raw pressure units / rad); stiffness 0 = no valid estimate
     contact_model: tuple[float, ...] = NO_MODEL
+    #: episodes in which servo error bits (overload, overheat, voltage) sent the hand to its
+    #: safe state so far, and whether it is held there now
+    servo_fault_trips: int = 0
+    servo_safe: bool = False
 
 
 Message = MasterState | ForceCommand | HandCommand | HandState

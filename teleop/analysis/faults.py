@@ -23,7 +23,17 @@ import random
 import msgpack
 import numpy as np
 
-from teleop.messages import SCHEMA_VERSION
+from teleop.messages import (
+    N_PRESSURE,
+    SCHEMA_VERSION,
+    FingerState,
+    ForceCommand,
+    HandCommand,
+    HandState,
+    Header,
+    MasterState,
+    Message,
+)
 
 Array = np.ndarray
 
@@ -50,17 +60,26 @@ def _finger_wire(angle: float) -> list[object]:
     return [angle, 0.0, angle, 0.0, [0.0] * 9, [False] * 9]
 
 
-def _valid_wire(signal: str, seq: int, energy_j: float) -> list[object]:
-    """A well-formed wire array for ``signal`` (before corruption)."""
-    kind = _KIND_OF_SIGNAL[signal]
-    head: list[object] = [kind, SCHEMA_VERSION, seq, 1.0, energy_j]
+def _valid_message(signal: str, seq: int, energy_j: float) -> Message:
+    """A valid message for ``signal`` asking for a large motion (set-points 2.5 rad)."""
+    h = Header(seq=seq, t_s=1.0, energy_total_j=energy_j)
     if signal == "master_state":
-        return [*head, 0.01, 0.0, -1.0, 0.0]  # schema 2: echo_t_s, echo_held_s last
+        return MasterState(h, 0.01, 0.0)
     if signal == "force_command":
-        return [*head, 1.0]
+        return ForceCommand(h, 1.0)
     if signal == "hand_command":
-        return [*head, [2.5, 2.5, 2.5], 0.0, 0, [0.0, 0.0, 0.0]]
-    return [*head, [_finger_wire(2.5) for _ in range(3)], 0.0, -1.0, 0.0]
+        return HandCommand(h, (2.5, 2.5, 2.5), 0.0)
+    f = FingerState(2.5, 0.0, 2.5, 0.0, (0.0,) * N_PRESSURE, (False,) * N_PRESSURE)
+    return HandState(h, (f, f, f), 0.0)
+
+
+def _valid_wire(signal: str, seq: int, energy_j: float) -> list[object]:
+    """A well-formed wire array for ``signal`` (before corruption), of the present schema."""
+    from teleop.transport.codec import encode
+
+    wire = msgpack.unpackb(encode(_valid_message(signal, seq, energy_j)), raw=False)
+    assert wire[0] == _KIND_OF_SIGNAL[signal] and wire[1] == SCHEMA_VERSION
+    return list(wire)
 
 
 def malformed_payload(i: int, signal: str, seed: int = 0) -> tuple[str, bytes]:

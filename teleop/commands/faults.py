@@ -7,6 +7,7 @@ Examples::
     teleop faults --short --json -        # the CI version, JSON on stdout
     teleop faults --only malformed_flood,controller_restart
     teleop faults --mode live --short     # over real zenoh: spawned service processes
+    teleop faults --soak 30 --json soak.json   # 30 min live, a fault every minute
 
 Exit status: 0 when every scenario passed its checks, 1 when one failed, 2 on a user error.
 """
@@ -18,7 +19,13 @@ import math
 import sys
 from typing import Any
 
-from teleop.commands.common import add_config_options, add_json_option, write_json
+from teleop.commands.common import (
+    add_config_options,
+    add_json_option,
+    positive_float,
+    write_json,
+)
+from teleop.commands.run import add_realtime_option
 from teleop.errors import UserInputError
 
 
@@ -40,6 +47,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--seed", type=int, default=1, help="run seed (default 1)")
     p.add_argument("--only", default=None, metavar="LIST",
                    help="comma list of scenario names to run (default: all)")
+    p.add_argument("--soak", type=positive_float, default=None, metavar="MINUTES",
+                   help="soak instead of the suite: the three services live over zenoh for "
+                   "MINUTES, repeated grasps, a fault every --fault-every seconds (controller "
+                   "killed, link cut, malformed flood, a stalled service, in turn)")
+    p.add_argument("--fault-every", type=positive_float, default=60.0, metavar="S",
+                   help="soak: seconds between faults (default 60)")
+    add_realtime_option(p)
     p.set_defaults(run=run)
 
 
@@ -98,6 +112,8 @@ def run(args: argparse.Namespace) -> int:
     # every rejection is counted and reported in the table: no per-message warning lines
     logging.getLogger("teleop.transport").setLevel(logging.ERROR)
 
+    if args.soak is not None:
+        return _soak(args)
     only = tuple(x.strip() for x in args.only.split(",") if x.strip()) if args.only else None
     if args.mode == "live":
         from services.faults_live import LIVE_SCENARIOS, run_live_suite
@@ -128,3 +144,31 @@ def run(args: argparse.Namespace) -> int:
         print(table(doc))
     write_json(args.json_path, doc)
     return 0 if suite.ok else 1
+
+
+def _soak(args: argparse.Namespace) -> int:
+    """``--soak MINUTES``: the verdict line on stdout (and the table unless JSON goes there)."""
+    from services.soak import FAULT_S, run_soak
+    from services.soak_summary import soak_table
+    from teleop.config import load_config
+
+    if args.only is not None or args.short or args.mode != "lockstep":
+        raise UserInputError("--soak: runs live on its own; --only, --short and --mode do "
+                             "not apply")
+    if args.fault_every < 2 * FAULT_S + 2.0:
+        raise UserInputError(f"--fault-every {args.fault_every:g}: at least "
+                             f"{2 * FAULT_S + 2.0:g} s (a fault lasts {FAULT_S:g} s)")
+    load_config(args.config, args.overrides)  # a bad key fails here, in one line
+
+    def say(text: str) -> None:
+        print(f"soak: {text}", file=sys.stderr, flush=True)
+
+    doc = run_soak(args.config, list(args.overrides), args.soak,
+                   fault_every_s=args.fault_every, realtime=args.realtime, progress=say)
+    if args.json_path != "-":
+        print(soak_table(doc))
+        print(doc["verdict"])
+    else:
+        say(doc["verdict"])
+    write_json(args.json_path, doc)
+    return 0 if doc["ok"] else 1

@@ -61,6 +61,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     add_realtime_option(p)
     p.add_argument("--watch-stdin", action="store_true", help=argparse.SUPPRESS)
     p.add_argument("--stats-json", default=None, help=argparse.SUPPRESS)
+    p.add_argument("--soak-log", default=None, help=argparse.SUPPRESS)  # teleop faults --soak
     p.set_defaults(run=run)
 
 
@@ -84,5 +85,6 @@ def run(args: argparse.Namespace) -> int:
                           dashboard=args.dashboard or "off", record_dir=args.record,
                           recording_id=args.recording_id, epoch_s=args.epoch,
                           watch_stdin=args.watch_stdin, stats_path=args.stats_json,
-                          peer_timeout_s=args.wait_peers, realtime=args.realtime)
+                          peer_timeout_s=args.wait_peers, realtime=args.realtime,
+                          soak_dir=args.soak_log)
     return run_service(cfg, opts)

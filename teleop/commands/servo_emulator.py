@@ -72,6 +72,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="servo reporting the overload error bit (repeatable)")
     f.add_argument("--overheat-id", type=int, action="append", default=[], metavar="ID",
                    help="servo reporting the overheat error bit (repeatable)")
+    f.add_argument("--voltage-id", type=int, action="append", default=[], metavar="ID",
+                   help="servo reporting the input voltage error bit (repeatable)")
     f.add_argument("--seed", type=int, default=0, help="seed of the fault draws")
     p.set_defaults(run=run)
 
@@ -93,13 +95,15 @@ def run(args: argparse.Namespace) -> int:
     if not 0 <= args.return_delay_us <= 508:
         raise UserInputError("--return-delay-us must be in 0..508")
     for flag, fault_ids in (("--overload-id", args.overload_id),
-                            ("--overheat-id", args.overheat_id)):
+                            ("--overheat-id", args.overheat_id),
+                            ("--voltage-id", args.voltage_id)):
         unknown = [i for i in fault_ids if i not in ids]
         if unknown:
             raise UserInputError(f"{flag} {unknown[0]}: no emulated servo has that ID "
                                  f"(IDs: {','.join(map(str, ids))})")
     faults = FaultConfig(args.drop_rate, args.corrupt_rate, args.latency_ms / 1000.0,
-                         tuple(args.overload_id), tuple(args.overheat_id), args.seed)
+                         tuple(args.overload_id), tuple(args.overheat_id), args.seed,
+                         tuple(args.voltage_id))
     bus = make_bus_emulator(protocol, ids, tuple(d.inversion), homes, cfg.hand.sim.object,
                             faults, args.return_delay_us, args.physics)
     emu = PtyServoEmulator(bus, cfg.hand.sim.physics_rate_hz)

@@ -68,6 +68,10 @@ class DynamixelConfig:
     command_delay_s: float = param(0.09, "delay applied to every command when pacing is on",
                                    unit="s", lo=0.0, hi=5.0)
     max_failures: int = param(5, "consecutive bus failures before the hand goes safe", lo=1)
+    reboot_after_s: float = param(1.0, "protocol 2.0: time in the servo-error safe state before "
+                                  "the faulted servos are rebooted to clear their latched "
+                                  "hardware error status (again as often while it comes back; "
+                                  "0 = never reboot)", unit="s", lo=0.0, hi=3600.0)
     retries: int = param(2, "retries of one failed bus transaction", lo=0, hi=100)
     timeout_s: float = param(0.02, "serial reply timeout", unit="s", lo=0.001, hi=5.0)
     bulk_read: bool = param(False, "protocol 1.0: read all servos with one BULK_READ per cycle "

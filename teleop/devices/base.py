@@ -24,6 +24,8 @@ class HandReading:
     #: no fresh measurement behind this reading (a silent brain board): the hand service
     #: trips its watchdog and does not publish it
     stale: bool = False
+    servo_fault_trips: int = 0  # times servo error bits sent the hand to its safe state
+    servo_safe: bool = False  # held safe now because of servo error bits
 
 
 class HandBackend(Protocol):

@@ -240,6 +240,16 @@ class DynamixelBus:
         self._check_servo(what, error)
         return int(error)
 
+    def reboot(self, dxl_id: int) -> None:
+        """REBOOT servo ``dxl_id`` (protocol 2.0): clears its latched hardware error status
+        when the cause has gone; the servo comes back with torque off."""
+        def fn() -> tuple[int, int, Any]:
+            result, error = self._ph.reboot(self._port, dxl_id)
+            return result, error, None
+        what = f"reboot of servo {dxl_id}"
+        _, error = self._call(what, fn)
+        self._check_servo(what, error)
+
     def write_goals(self, goals: Mapping[int, Goal]) -> None:
         """One synchronised write of goal position and moving speed to every servo in ``goals``."""
         sdk = self._sdk

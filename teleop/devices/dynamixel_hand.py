@@ -35,8 +35,9 @@ ReFlex conventions (``hand.dynamixel`` config; reference: reflex-hardware.md):
   episodes).  When every bit has cleared the hand resumes cleanly: goals at the present
   position first, then torque on again (the servo's alarm shutdown may have switched it off),
   then the next command is followed.  A P2.0 servo latches its hardware error status until
-  it is rebooted; this backend does not reboot servos, so on real P2.0 hardware it stays
-  safe until the servo is power-cycled.
+  it is rebooted: after ``reboot_after_s`` in the safe state the backend reboots the faulted
+  servos (``servo_reboots`` counts them), again as often while the status comes back; a
+  cause that has gone then leaves the status clear and the hand resumes as above.
 """
 
 from __future__ import annotations
@@ -106,6 +107,8 @@ class DynamixelHand:
         self.safe_reason = ""  # non-empty while latched safe after bus failures
         self.servo_fault_reason = ""  # non-empty while held safe on servo error bits
         self.servo_fault_trips = 0  # times the servo error bits sent the hand safe
+        self.servo_reboots = 0  # P2.0 servos rebooted to clear a latched error status
+        self._last_reboot_s: float | None = None
         self.servo_fault_since_s: float | None = None  # clock() when the present episode began
         self.requested_safe = False
         self.started = False
@@ -192,7 +195,9 @@ class DynamixelHand:
         elif self.servo_fault_reason:
             self._faults.append(self.servo_fault_reason)
         faults, self._faults = tuple(dict.fromkeys(self._faults)), []
-        return HandReading(t_s, self._finger_states(), self.joint[3], faults)
+        return HandReading(t_s, self._finger_states(), self.joint[3], faults,
+                           servo_fault_trips=self.servo_fault_trips,
+                           servo_safe=bool(self.servo_fault_reason))
 
     def safe(self, mode: str) -> None:
         """Hold the present position (``"hold"``) or open the fingers (``"open"``)."""
@@ -316,8 +321,29 @@ class DynamixelHand:
                 log.error("%s", reason)
                 self._hold_present()
             self.servo_fault_reason = reason
+            self._maybe_reboot([s.dxl_id for s in self._status if s.hardware_faults])
         elif self.servo_fault_reason:
             self._resume_after_servo_error()
+
+    def _maybe_reboot(self, ids: list[int]) -> None:
+        """P2.0 latches the hardware error status until a reboot: once the hand has held its
+        safe state ``reboot_after_s`` (since the episode began or the last reboot), reboot the
+        faulted servos.  A cause that is gone leaves the status clear (the next reading
+        resumes); one still present sets it again (held safe, rebooted again later)."""
+        after = self.cfg.reboot_after_s
+        if self.cfg.protocol < 2.0 or after <= 0.0:
+            return
+        now = self.clock()
+        since = self._last_reboot_s if self._last_reboot_s is not None else (
+            self.servo_fault_since_s if self.servo_fault_since_s is not None else now)
+        if now - since < after:
+            return
+        self._last_reboot_s = now
+        for dxl_id in ids:
+            if self._guard(f"reboot of servo {dxl_id}", lambda i=dxl_id: self.bus.reboot(i)):
+                self.servo_reboots += 1
+                log.warning("dynamixel: servo %d rebooted after %.2f s in the safe state to "
+                            "clear its latched hardware error status", dxl_id, now - since)
 
     def _hold_present(self) -> bool:
         """Safe state (hold): drop pending commands, goals at the present position."""
@@ -339,6 +365,7 @@ class DynamixelHand:
                     "from the present position", held)
         self.servo_fault_reason = ""
         self.servo_fault_since_s = None
+        self._last_reboot_s = None
 
     def _guard(self, what: str, fn: Callable[[], object]) -> bool:
         """Run a bus cycle step; count consecutive failures and latch safe at the limit."""

@@ -10,9 +10,12 @@ Every phase runs a second process (:mod:`teleop.transport.peer`, spawned, not fo
   time on the shared ``CLOCK_MONOTONIC`` (same machine), at 1 kHz.  ``rtt_*``: the same
   round trip (master_state out, force_command back), for comparison with ``raw_rtt_*``.
 * ``delay_error_*``: achieved minus configured one-way delay with ``delay_s = 0.05``.
-* Every ``*_p99_us`` has its ``*_max_us`` beside it: a p99 hides the worst 1 % (a stall).
+* Every ``*_p99_us`` has its ``*_max_us`` and ``*_stalls`` beside it: a p99 hides the worst
+  1 %; ``*_stalls`` counts the messages later than :data:`STALL_US` (the services' 20 ms
+  watchdog timeout: a gap that long trips them).
 * ``messages_per_s``: sustained rate of master_state -> force_command echoes with at most
-  32 unanswered (each counted once; every one is encoded, delayed, decoded on both sides).
+  32 unanswered (each counted once; every one is encoded, delayed, decoded on both sides);
+  a window unanswered for 50 ms is written off, never counted (``written_off``).
   Publishing flat out instead only measures zenoh's drops (CongestionControl.DROP) once
   the Python receiver falls behind.
 """
@@ -41,6 +44,14 @@ def _pct(values: list[float], q: float) -> float:
 
 def _max(values: list[float]) -> float:
     return max(values, default=float("nan"))
+
+
+STALL_US = 20_000.0
+
+
+def _stalls(values: list[float]) -> float:
+    """How many of ``values`` (us) exceed :data:`STALL_US`."""
+    return float(sum(1 for v in values if v > STALL_US))
 
 
 def _wait(cond: object, timeout_s: float, what: str) -> None:
@@ -142,8 +153,9 @@ def bus_phase(n: int, mode: str, overrides: list[str],
     return result
 
 
-def throughput_phase(n: int, window: int = 32) -> tuple[float, int]:
-    """Echo ``n`` messages with at most ``window`` unanswered; ``(elapsed s, echoed)``."""
+def throughput_phase(n: int, window: int = 32) -> tuple[float, int, int]:
+    """Echo ``n`` messages with at most ``window`` unanswered; ``(elapsed s, echoed,
+    written off)``."""
     clock = MonotonicClock()
     ep = free_tcp_endpoint()
     bus = ZenohBus("master", session="bench-thr", listen=[ep], connect=[])
@@ -195,7 +207,7 @@ def throughput_phase(n: int, window: int = 32) -> tuple[float, int]:
         if peer is not None:
             peer.kill()
         bus.close()
-    return elapsed, echoed
+    return elapsed, echoed, acked - first - echoed
 
 
 def bench_transport(duration_s: float = 5.0) -> dict[str, float | str]:
@@ -209,23 +221,27 @@ def bench_transport(duration_s: float = 5.0) -> dict[str, float | str]:
     dly = bus_phase(n, "echo", [f"links.master_controller.delay_s={DELAY_S}"])
     err = [d - DELAY_S * 1e6 for d in dly["delays_us"]]  # type: ignore[attr-defined]
     n_thr = min(4 * n, 20000)
-    thr_s, echoed = throughput_phase(n_thr)
+    thr_s, echoed, written_off = throughput_phase(n_thr)
     return {
         "messages_sent": float(n),
         "latency_method": "one-way, receive minus send on the shared CLOCK_MONOTONIC",
         "p50_us": _pct(fwd, 50), "p99_us": _pct(fwd, 99), "max_us": _max(fwd),
+        "stalls": _stalls(fwd),
         "received_fraction": len(fwd) / n,
         "backward_p50_us": _pct(back, 50), "backward_p99_us": _pct(back, 99),
-        "backward_max_us": _max(back),
+        "backward_max_us": _max(back), "backward_stalls": _stalls(back),
         "rtt_p50_us": _pct(rtt, 50), "rtt_p99_us": _pct(rtt, 99), "rtt_max_us": _max(rtt),
+        "rtt_stalls": _stalls(rtt),
         "raw_rtt_p50_us": _pct(raw, 50), "raw_rtt_p99_us": _pct(raw, 99),
-        "raw_rtt_max_us": _max(raw),
+        "raw_rtt_max_us": _max(raw), "raw_rtt_stalls": _stalls(raw),
         "raw_one_way_p50_us": _pct(raw, 50) / 2,
         "delay_configured_ms": DELAY_S * 1e3,
         "delay_error_p50_us": _pct(err, 50),
         "delay_error_p99_us": _pct([abs(e) for e in err], 99),  # of |error|
         "delay_error_max_us": _max([abs(e) for e in err]),  # of |error|
+        "delay_error_stalls": _stalls([abs(e) for e in err]),
         "delay_error_min_us": min(err, default=float("nan")),
         "delay_received_fraction": len(err) / n,
         "messages_per_s": echoed / thr_s,
+        "written_off": float(written_off),
     }

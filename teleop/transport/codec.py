@@ -60,7 +60,7 @@ SEQ_MAX = 2**63 - 1
 
 KINDS: dict[type, int] = {MasterState: 1, ForceCommand: 2, HandCommand: 3, HandState: 4}
 _TYPE_OF_KIND = {v: k for k, v in KINDS.items()}
-_N_FIELDS = {MasterState: 4, ForceCommand: 2, HandCommand: 4, HandState: 5}
+_N_FIELDS = {MasterState: 4, ForceCommand: 2, HandCommand: 4, HandState: 7}
 _HEAD = 5  # kind, version, seq, t_s, energy_total_j
 _FINGER_FIELDS = 6
 
@@ -84,7 +84,8 @@ def _fields(msg: Message) -> list[Any]:
     if isinstance(msg, HandState):
         return [[_finger_to_wire(f) for f in msg.fingers], float(msg.preshape_rad),
                 float(msg.echo_t_s), float(msg.echo_held_s),
-                [float(x) for x in msg.contact_model]]
+                [float(x) for x in msg.contact_model], int(msg.servo_fault_trips),
+                bool(msg.servo_safe)]
     raise TypeError(f"encode: not a teleop message: {type(msg).__name__}")
 
 
@@ -176,7 +177,22 @@ def _body(cls: type, h: Header, b: list[Any]) -> Message:
                      _num(b[1], "preshape_rad", *PRESHAPE_RANGE_RAD),
                      _num(b[2], "echo_t_s", *ECHO_RANGE_S),
                      _num(b[3], "echo_held_s", *HELD_RANGE_S),
-                     _model(b[4], "contact_model", CONTACT_STIFFNESS_RANGE))
+                     _model(b[4], "contact_model", CONTACT_STIFFNESS_RANGE),
+                     _count(b[5], "servo_fault_trips"), _flag(b[6], "servo_safe"))
+
+
+def _count(v: Any, name: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise DecodeError("bad_type", f"{name} must be an integer")
+    if not 0 <= v <= SEQ_MAX:
+        raise DecodeError("out_of_range", f"{name}={v}")
+    return v
+
+
+def _flag(v: Any, name: str) -> bool:
+    if not isinstance(v, bool):
+        raise DecodeError("bad_type", f"{name} must be a boolean")
+    return v
 
 
 def _model(v: Any, name: str, stiffness: tuple[float, float]) -> tuple[float, ...]:

@@ -211,6 +211,8 @@ def log_hand(rec: rr.RecordingStream, t_s: float, reading: HandReading, *, tank_
     rec.log("hand/drawing/links", rr.LineStrips2D(links, colors=(200, 200, 200), radii=0.004))
     rec.log("hand/drawing/tendon", rr.LineStrips2D(tendons, colors=(60, 120, 220), radii=0.001))
     rec.log("hand/drawing/sensors", rr.Points2D(points, colors=colors, radii=0.003))
+    _scalar(rec, "hand/servo_fault_trips", float(reading.servo_fault_trips))
+    _scalar(rec, "hand/servo_safe", float(reading.servo_safe))
     _scalar(rec, "hand/tank_j", tank_j)
     _scalar(rec, "hand/port_in_j", port_in_j)
     _scalar(rec, "hand/port_out_j", port_out_j)

@@ -56,6 +56,25 @@ def test_long_stall_skips_deadlines_instead_of_bursting() -> None:
     assert fig["x_tick_max_us"] >= fig["x_tick_p99_us"]
 
 
+def test_timing_callback_gets_every_tick_and_the_loop_keeps_none() -> None:
+    clock = VirtualClock()
+    loop = RateLoop(1000.0, clock=clock, catchup_periods=3)
+    got: list[tuple[float, float, float]] = []
+    n = [0]
+
+    def tick(t: float) -> None:
+        n[0] += 1
+        if n[0] == 2:
+            clock.advance(0.0105)
+
+    stats = loop.run(tick, duration_s=0.02, timing=lambda *a: got.append(a))
+    assert stats.ticks == len(got) == n[0] and stats.lateness_s.size == 0  # nothing kept
+    assert stats.skipped == 9 and stats.stall_ticks == (2,)
+    stalls = [s for _, _, s in got if s > 0]
+    assert stalls == [pytest.approx(0.0095)]  # the true lateness of the stall, once
+    assert got[2][1] == pytest.approx(0.0005)  # re-based lateness of that tick
+
+
 def test_without_stalls_the_max_is_the_largest_tick_lateness() -> None:
     stats = RateLoop(40.0, clock=VirtualClock()).run(lambda t: None, duration_s=1.0)
     fig = stats.figures("y")
@@ -75,7 +94,11 @@ def test_loop_bench_summary_puts_max_and_stalls_beside_the_p99() -> None:
     assert s["lateness_p99_us"] == 400.0  # worst of master and controller (the floor's)
     assert s["lateness_max_us"] == 40_000.0 and s["stalls"] == 3.0
     assert s["lateness_max_us"] >= s["lateness_p99_us"]
-    assert s["floor_ok"] == 1.0  # the floor is on the p99; the max and stalls say the rest
+    assert s["floor_p99_ok"] == 1.0  # rate and p99 alone would pass ...
+    assert s["floor_ok"] == 0.0  # ... but the master's 25 ms stall trips the watchdogs
+    calm = figures | {"master_lateness_max_us": 900.0, "hand_lateness_max_us": 90_000.0}
+    assert loop_summary(calm)["floor_ok"] == 1.0  # (the 40 Hz hand is not floored)
+    assert loop_summary(calm | {"controller_lateness_max_us": 20_001.0})["floor_ok"] == 0.0
 
 
 @pytest.mark.slow
@@ -83,3 +106,16 @@ def test_real_clock_holds_1khz() -> None:
     stats = RateLoop(1000.0, clock=MonotonicClock()).run(lambda t: None, duration_s=0.5)
     assert abs(stats.ticks + stats.skipped - 500) <= 1  # every deadline ticked or skipped
     assert stats.lateness_percentile_s(50) < 200e-6  # (this machine is shared: no tail bound)
+
+
+def test_a_service_keeps_per_tick_timing_only_for_stats_json() -> None:
+    """``teleop up`` grew 6 MB a minute per 1 kHz service while the loop kept every tick's
+    timing for nobody: now the timing goes nowhere unless ``--stats-json`` reads it."""
+    from services.process import ServiceOptions, _timing_sink
+
+    sink = _timing_sink(None, ServiceOptions("master"))
+    assert sink is not None  # a callback: the loop keeps nothing
+    stats = RateLoop(1000.0, clock=VirtualClock()).run(lambda t: None, duration_s=0.5,
+                                                       timing=sink)
+    assert stats.ticks == 500 and stats.lateness_s.size == 0 and stats.tick_s.size == 0
+    assert _timing_sink(None, ServiceOptions("master", stats_path="s.json")) is None

@@ -121,3 +121,40 @@ def test_status_line_reports_setpoints_force_and_latest_delays() -> None:
     assert "max pressure 660" in line and "store 0.75 J" in line
     assert "delay master 12 ms hand -" in line and line.endswith("WATCHDOG")
     assert "\n" not in line
+
+
+class FaultedHand(FakeHand):
+    """A hand whose servo error bits have sent it safe ``trips`` times (held now: ``safe``)."""
+
+    trips, safe = 0, False
+
+    def read(self, t_s: float):  # noqa: ANN201 - HandReading
+        from dataclasses import replace
+
+        return replace(super().read(t_s), servo_fault_trips=self.trips, servo_safe=self.safe)
+
+
+def test_the_servo_fault_count_reaches_the_controller_in_the_hand_state() -> None:
+    from services.controller_service import ControllerService
+
+    cfg = load_config(None, [])
+    clock = VirtualClock()
+    hub = InProcessHub.from_config(cfg, clock)
+    hand = FaultedHand()
+    h_svc = HandService(cfg, hub.bus("hand"), hand)
+    c_svc = ControllerService(cfg, hub.bus("controller"))
+    events: list[str] = []
+    seen: list[tuple[float, float]] = []
+    for k in range(12):
+        if k == 6:
+            hand.trips, hand.safe = 2, True
+        t = k * h_svc.dt_s
+        clock.set(t)
+        hs = h_svc.tick(t)
+        clock.set(t + 1e-3)
+        cs = c_svc.tick(t + 1e-3)
+        events += c_svc.events
+        seen.append((hs.servo_fault_trips, cs.hand_servo_fault_trips))
+    assert seen[0] == (0.0, 0.0) and seen[-1] == (2.0, 2.0)
+    assert (h_svc.bus.alive("controller"), hs.servo_safe) == (True, 1.0)
+    assert sum("servo error bits" in e and "episode 2" in e for e in events) == 1

@@ -128,29 +128,41 @@ def test_serial_faults_are_retried_then_the_hand_goes_safe(
         emu.stop()
 
 
-@pytest.mark.parametrize("protocol", [1, 2])
-def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int) -> None:
+@pytest.mark.parametrize("protocol, kind", [(1, "overload"), (2, "overload"),
+                                            (1, "input voltage")])
+def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int, kind: str) -> None:
     emu = emulator(protocol, physics="simple")
-    hand = build_dynamixel_hand(config(emu))
+    hand = build_dynamixel_hand(config(emu, reboot_after_s=0.5))
     servo_id = hand.cfg.ids[1]  # finger 2
     servo = emu.bus.servos[1]
     try:
         hand.start()
         run_for(hand, command(0.3), 0.3)
         assert hand.servo_fault_trips == 0 and not hand.servo_fault_reason
-        emu.bus.faults = FaultConfig(overload_ids=(servo_id,))
+        emu.bus.faults = (FaultConfig(overload_ids=(servo_id,)) if kind == "overload"
+                          else FaultConfig(voltage_ids=(servo_id,)))
         faults = hand.read(0.0).faults
         assert hand.servo_fault_trips == 1
-        assert f"servo {servo_id} overload" in hand.servo_fault_reason
-        assert any("safe state" in f and f"servo {servo_id} overload" in f for f in faults)
+        assert f"servo {servo_id} {kind}" in hand.servo_fault_reason
+        assert any("safe state" in f and f"servo {servo_id} {kind}" in f for f in faults)
         held = [s.peek("goal_position") for s in emu.bus.servos]
         run_for(hand, command(1.0, preshape=0.5), 0.3)  # ignored while the bit is set
         assert [s.peek("goal_position") for s in emu.bus.servos] == held
         assert hand.servo_fault_trips == 1  # one episode, however many readings
         assert any("safe state" in f for f in hand.read(0.5).faults)
-        assert servo.peek("torque_enable") == 0  # the servo's own alarm shutdown
+        # the servo's own alarm shutdown (overload is in its default shutdown mask; voltage not)
+        assert servo.peek("torque_enable") == (0 if kind == "overload" else 1)
+        reboots = servo.reboots  # (a reboot while the cause is present changes nothing)
         emu.bus.faults = FaultConfig()  # the overload clears
         faults = hand.read(1.0).faults
+        if protocol == 2:  # the servo latches its error status until the hand reboots it
+            assert hand.servo_fault_reason and servo.reboots == reboots
+            assert _read_until_resumed(hand, 3.0)
+            assert servo.reboots > reboots and hand.servo_reboots >= 1
+            assert all(s.reboots == 0 for s in emu.bus.servos if s is not servo)
+            faults = hand.read(1.0).faults
+        else:
+            assert hand.servo_reboots == 0 and servo.reboots == 0
         assert not hand.servo_fault_reason and not any("safe state" in f for f in faults)
         assert all(s.peek("torque_enable") == 1 for s in emu.bus.servos)  # torque back on
         # resumed: commands are followed again, from where the fingers were held
@@ -158,6 +170,41 @@ def test_servo_error_bits_hold_the_hand_safe_until_they_clear(protocol: int) -> 
             f.motor_angle_rad > 0.9 for f in r[-1].fingers))
         assert all(f.motor_angle_rad > 0.9 for f in moved[-1].fingers)
         assert hand.servo_fault_trips == 1 and not hand.safe_reason
+    finally:
+        hand.close()
+        emu.stop()
+
+
+def _read_until_resumed(hand: DynamixelHand, limit_s: float) -> bool:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < limit_s:
+        hand.read(time.monotonic() - t0)
+        if not hand.servo_fault_reason:
+            return True
+        time.sleep(0.025)
+    return False
+
+
+@pytest.mark.parametrize("reboot_after_s, cause_stays", [(0.0, False), (0.2, True)])
+def test_p2_without_a_reboot_or_with_the_cause_still_there_the_hand_stays_safe(
+        reboot_after_s: float, cause_stays: bool) -> None:
+    emu = emulator(2, physics="simple")
+    hand = build_dynamixel_hand(config(emu, reboot_after_s=reboot_after_s))
+    servo = emu.bus.servos[0]
+    try:
+        hand.start()
+        run_for(hand, command(0.3), 0.2)
+        emu.bus.faults = FaultConfig(overheat_ids=(hand.cfg.ids[0],))
+        hand.read(0.0)
+        if not cause_stays:
+            emu.bus.faults = FaultConfig()  # gone, but latched: only a reboot clears it
+        assert not _read_until_resumed(hand, 1.0)
+        assert "overheat" in hand.servo_fault_reason and hand.servo_fault_trips == 1
+        if reboot_after_s > 0:  # rebooted again and again while overheated: never resumed
+            assert servo.reboots >= 2 and hand.servo_reboots == servo.reboots
+            assert servo.peek("torque_enable") == 0
+        else:
+            assert servo.reboots == 0 and hand.servo_reboots == 0
     finally:
         hand.close()
         emu.stop()

@@ -34,6 +34,8 @@ def test_bench_transport_json(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     for prefix in ("", "backward_", "rtt_", "raw_rtt_"):
         p50, p99, top = (fig[f"{prefix}{q}_us"] for q in ("p50", "p99", "max"))
         assert top >= p99 >= p50 > 0, prefix
+        assert (fig[f"{prefix}stalls"] > 0) == (top > bench.STALL_US), prefix
+    assert fig["written_off"] >= 0
     assert fig["delay_error_max_us"] >= fig["delay_error_p99_us"] >= 0
     assert fig["delay_error_max_us"] >= abs(fig["delay_error_min_us"])
 

@@ -47,7 +47,8 @@ messages = st.one_of(
               _f(*codec.PRESHAPE_RANGE_RAD), st.sampled_from(list(HandMode)),
               st.tuples(*[_f(*codec.FORCE_UNITS_RANGE)] * 3)),
     st.builds(HandState, headers, st.tuples(fingers, fingers, fingers),
-              _f(*codec.PRESHAPE_RANGE_RAD)),
+              _f(*codec.PRESHAPE_RANGE_RAD), servo_fault_trips=st.integers(0, 2**63 - 1),
+              servo_safe=st.booleans()),
 )
 
 
@@ -218,3 +219,19 @@ def test_echo_timestamp_round_trips() -> None:
     hs = HandState(Header(0, 0.0, 0.0), (fs, fs, fs), 0.0, echo_t_s=12.5, echo_held_s=0.02)
     assert decode(encode(hs)) == hs
     assert MasterState(Header(0, 0.0, 0.0), 0.0, 0.0).echo_t_s < 0  # none received yet
+
+
+def test_hand_state_carries_the_servo_fault_count_and_rejects_bad_ones() -> None:
+    """Schema 4: the hand's servo-error safe-state episodes and whether it is held now."""
+    fs = FingerState(0.1, 0.2, 0.3, 10.0, (0.0,) * 9, (False,) * 9)
+    hs = HandState(Header(0, 0.0, 0.0), (fs, fs, fs), 0.0, servo_fault_trips=3,
+                   servo_safe=True)
+    back = decode(encode(hs))
+    assert isinstance(back, HandState) and back.servo_fault_trips == 3 and back.servo_safe
+    for i, bad, reason in [(10, -1, "out_of_range"), (10, 1.0, "bad_type"),
+                           (10, True, "bad_type"), (11, 1, "bad_type")]:
+        wire = msgpack.unpackb(encode(hs), raw=False)
+        wire[i] = bad
+        with pytest.raises(DecodeError) as info:
+            decode(msgpack.packb(wire))
+        assert info.value.reason == reason, (i, bad)
