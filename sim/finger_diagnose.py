@@ -29,8 +29,8 @@ from sim.finger_hand_rec import hand_finger_data, is_hand_recording
 from sim.finger_model_file import write_model
 from sim.finger_select import DynamicDiagnosis, diagnose_dynamic, print_progress
 from sim.params import FingerParams, default_finger_params
-from teleop.analysis.ambiguity import ambiguous
-from teleop.analysis.candidates import explanation
+from teleop.diagnose.ambiguity import ambiguous
+from teleop.diagnose.candidates import explanation
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording
@@ -184,8 +184,8 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
 
 def diagnose_finger(args: argparse.Namespace) -> int:
     """``teleop diagnose REC --model finger``: static weight recordings against the finger."""
-    from teleop.analysis.generic import diagnose_model
     from teleop.commands.common import info, write_json
+    from teleop.diagnose.generic import diagnose_model
     from teleop.recording import read_recording
 
     recs = [read_recording(p, allow_nan=True) for p in args.recordings]

@@ -4,7 +4,7 @@
 Greedy forward selection: candidates (:data:`sim.finger_dynamic.CANDIDATES`) are screened on a
 value grid with the current model held, the best ``refine_top`` are fitted jointly with the
 refined nominal parameters, and the first one that passes the shared selection rule
-(:mod:`teleop.analysis.criterion`: penalised likelihood with an effective sample size, plus
+(:mod:`teleop.diagnose.criterion`: penalised likelihood with an effective sample size, plus
 held-out gain on interleaved blocks the fit did not see) is kept.  Selection stops when the
 training residual is at the floor (noise and the coarse physics step's own error).
 """
@@ -19,8 +19,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from sim.finger_dynamic import CANDIDATES, PARAMS, FingerDynamicModel, Fit
-from teleop.analysis.criterion import DEFAULT, Criterion, Verdict, judge, unexplained
-from teleop.analysis.residual import noise_std
+from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, judge, unexplained
+from teleop.diagnose.residual import noise_std
 
 Array = np.ndarray
 

@@ -25,7 +25,7 @@ BENCHES: dict[str, str] = {
     "loop": "services.bench:bench_loop",
     "lockstep": "services.bench_lockstep:bench_lockstep",
     "servo": "sim.servo_emulator_bench:bench_servo",
-    "diagnose": "teleop.analysis.bench:bench_diagnose",
+    "diagnose": "teleop.diagnose.bench:bench_diagnose",
 }
 
 

@@ -92,10 +92,10 @@ def _skip(rec: Recording, skip_s: float) -> Recording:
 
 def run(args: argparse.Namespace) -> int:
     """Run the diagnosis and print/write the results."""
-    from teleop.analysis.diagnose import DiagnoseOptions, diagnose
-    from teleop.analysis.fit import NUMERIC_FAILURES
-    from teleop.analysis.model import parse_nominal
-    from teleop.analysis.report import to_json, to_text
+    from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
+    from teleop.diagnose.fit import NUMERIC_FAILURES
+    from teleop.diagnose.model import parse_nominal
+    from teleop.diagnose.report import to_json, to_text
     from teleop.errors import RecordingError, UserInputError
     from teleop.recording import read_recording
 
@@ -132,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     info(args, to_text(d, src))
     write_json(args.json_path, to_json(d, args.model))
     if args.plot is not None:
-        from teleop.analysis.plot import plot_diagnosis
+        from teleop.diagnose.plot import plot_diagnosis
 
         plot_diagnosis(d, args.plot, title=f"teleop diagnose {src}"[:100])
         info(args, f"plot: {args.plot}")

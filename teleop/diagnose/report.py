@@ -1,16 +1,16 @@
-"""Terminal report and JSON document of a :class:`~teleop.analysis.diagnose.Diagnosis`."""
+"""Terminal report and JSON document of a :class:`~teleop.diagnose.diagnose.Diagnosis`."""
 
 from __future__ import annotations
 
 import math
 from typing import Any
 
-from teleop.analysis.ambiguity import ambiguous
-from teleop.analysis.criterion import unexplained
-from teleop.analysis.diagnose import Diagnosis
-from teleop.analysis.library import equation
-from teleop.analysis.residual import ResidualStats
-from teleop.analysis.results import ProposedTerm
+from teleop.diagnose.ambiguity import ambiguous
+from teleop.diagnose.criterion import unexplained
+from teleop.diagnose.diagnose import Diagnosis
+from teleop.diagnose.library import equation
+from teleop.diagnose.residual import ResidualStats
+from teleop.diagnose.results import ProposedTerm
 
 
 def _fmt(v: float) -> str:

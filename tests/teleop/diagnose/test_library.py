@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from teleop.analysis.axis_model import AxisParams, simulate_axis
-from teleop.analysis.library import Term, equation, units
-from teleop.analysis.propose import stlsq
+from teleop.diagnose.axis_model import AxisParams, simulate_axis
+from teleop.diagnose.library import Term, equation, units
+from teleop.diagnose.propose import stlsq
 from teleop.effects import EffectSet
 
 

@@ -8,15 +8,15 @@ from dataclasses import replace
 
 import numpy as np
 
-from teleop.analysis import candidates as cand
-from teleop.analysis import criterion as crit
-from teleop.analysis.equation_error import (
+from teleop.diagnose import candidates as cand
+from teleop.diagnose import criterion as crit
+from teleop.diagnose.equation_error import (
     EE_EFFECTS,
     EESignals,
     ee_effect_fit,
     ee_fit,
 )
-from teleop.analysis.fit import (
+from teleop.diagnose.fit import (
     NUMERIC_FAILURES,
     FitData,
     ModelFit,
@@ -24,8 +24,8 @@ from teleop.analysis.fit import (
     scan_effect,
     simulate,
 )
-from teleop.analysis.model import AxisNominal
-from teleop.analysis.results import DiagnoseOptions, EffectResult
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.results import DiagnoseOptions, EffectResult
 
 HOLDOUT_FLOOR = 2.0   # noise levels (twice the floor, as the finger path)
 
@@ -75,7 +75,7 @@ def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: Mode
 
 def informative(rms_base_test: float, noise: float) -> bool:
     """Whether a held-out part can confirm an effect: the model without it must miss there by
-    more than ``HOLDOUT_FLOOR`` noise levels (the rule in :mod:`teleop.analysis.criterion`)."""
+    more than ``HOLDOUT_FLOOR`` noise levels (the rule in :mod:`teleop.diagnose.criterion`)."""
     return not (noise > 0 and rms_base_test < HOLDOUT_FLOOR * noise)
 
 

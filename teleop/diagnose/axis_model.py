@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from teleop.analysis import library
+from teleop.diagnose import library
 from teleop.effects import EffectSet
 
 Array = NDArray[np.float64]

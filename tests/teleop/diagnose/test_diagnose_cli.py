@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from teleop.analysis.model import parse_nominal
-from teleop.analysis.synth import INPUT_COL, OUTPUT_COL, make_case, make_validation
 from teleop.cli import main
+from teleop.diagnose.model import parse_nominal
+from teleop.diagnose.synth import INPUT_COL, OUTPUT_COL, make_case, make_validation
 from teleop.errors import UserInputError
 from teleop.recording import Recording, write_recording
 
@@ -125,8 +125,8 @@ def _pd_loop(c: float, dist_scale: float, seed: int) -> Recording:
 
 
 def test_equation_error_finds_friction_in_closed_loop_data() -> None:
-    from teleop.analysis.diagnose import DiagnoseOptions, diagnose
-    from teleop.analysis.model import AxisNominal
+    from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
+    from teleop.diagnose.model import AxisNominal
 
     d = diagnose([_pd_loop(3.0, 0.0, 5)], DiagnoseOptions(
         AxisNominal(("inertia", "viscous"), (1.0, None), 0.1), "torque_nm", "angle_rad",
@@ -140,8 +140,8 @@ def test_equation_error_finds_friction_in_closed_loop_data() -> None:
 
 
 def test_a_drifting_simulation_switches_to_equation_error() -> None:
-    from teleop.analysis.diagnose import DiagnoseOptions, diagnose
-    from teleop.analysis.model import AxisNominal
+    from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
+    from teleop.diagnose.model import AxisNominal
 
     rec = _pd_loop(3.0, 3.0, 6)  # a large unrecorded disturbance: replaying the effort drifts
     d = diagnose([rec], DiagnoseOptions(AxisNominal(("inertia", "viscous"), (1.0, None), 0.1),

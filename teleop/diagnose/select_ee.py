@@ -1,5 +1,5 @@
 """Effect selection by equation error (inverse dynamics), under the shared rule
-(:mod:`teleop.analysis.criterion`): score on the regression rows, held-out gain with both
+(:mod:`teleop.diagnose.criterion`): score on the regression rows, held-out gain with both
 models fitted on the first 70 % of the recording and judged on the last 30 %."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ import math
 
 import numpy as np
 
-from teleop.analysis import candidates as cand
-from teleop.analysis import criterion as crit
-from teleop.analysis.equation_error import (
+from teleop.diagnose import candidates as cand
+from teleop.diagnose import criterion as crit
+from teleop.diagnose.equation_error import (
     EE_EFFECTS,
     EEFit,
     EESignals,
@@ -18,10 +18,10 @@ from teleop.analysis.equation_error import (
     ee_effect_fit,
     ee_fit,
 )
-from teleop.analysis.fit import NUMERIC_FAILURES
-from teleop.analysis.model import AxisNominal
-from teleop.analysis.results import DiagnoseOptions, EffectResult
-from teleop.analysis.select import _ee_grids
+from teleop.diagnose.fit import NUMERIC_FAILURES
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.results import DiagnoseOptions, EffectResult
+from teleop.diagnose.select import _ee_grids
 
 
 def _ee_score(base: EEFit, aug: EEFit, sig: EESignals) -> float:

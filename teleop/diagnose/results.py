@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from teleop.analysis.axis_model import Array
-from teleop.analysis.criterion import DEFAULT, Criterion
-from teleop.analysis.model import AxisNominal
-from teleop.analysis.residual import ResidualStats
-from teleop.analysis.windows import Window
+from teleop.diagnose.axis_model import Array
+from teleop.diagnose.criterion import DEFAULT, Criterion
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.residual import ResidualStats
+from teleop.diagnose.windows import Window
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,7 +22,7 @@ class DiagnoseOptions:
     input_col: str | None
     output_col: str
     analysis: str = "auto"            # auto | output-error | equation-error
-    criterion: Criterion = DEFAULT    # the one selection rule (teleop.analysis.criterion)
+    criterion: Criterion = DEFAULT    # the one selection rule (teleop.diagnose.criterion)
     max_effects: int = 3
     fit_rate_hz: float = 250.0         # output-error fit grid (the recording is decimated)
     max_fit_samples: int = 10000      # long recordings: lower the fit rate (not below 100 Hz)
@@ -47,7 +47,7 @@ class EffectResult:
 
 @dataclass(frozen=True, slots=True)
 class ProposedTerm:
-    """One accepted library term (``teleop.analysis.library``; a sin/cos pair is one) and its
+    """One accepted library term (``teleop.diagnose.library``; a sin/cos pair is one) and its
     evidence under the selection rule."""
 
     keys: tuple[str, ...]

@@ -4,13 +4,13 @@ When the output-error residual after the catalog effects stays above the noise:
 
 1. the **force-domain residual** of the fitted model (inverse dynamics on the filtered,
    differentiated position, :func:`equation_error.model_equation_error`) is regressed on the
-   typed library (:mod:`teleop.analysis.library`); a term kind with a structural constant
+   typed library (:mod:`teleop.diagnose.library`); a term kind with a structural constant
    (wavenumber, delay) is represented by its best constant on a grid;
 2. **sequentially thresholded least squares** (STLSQ) keeps the terms whose share of the
    residual is at least ``STLSQ_SHARE`` (columns standardised; refitted after every cut);
 3. each surviving term (a sin/cos pair is one term) is added to the nominal **simulation**
    (coefficients, and a pair's wavenumber, fitted by output error) and accepted only by the one
-   selection rule (:mod:`teleop.analysis.criterion`: score, a scanned constant counting as one
+   selection rule (:mod:`teleop.diagnose.criterion`: score, a scanned constant counting as one
    more parameter, and held-out gain);
 4. with terms accepted, the catalog effects are selected again on top of nominal + terms (not at
    all when these leave only noise): a catalog effect that was only standing in for
@@ -23,14 +23,14 @@ import math
 
 import numpy as np
 
-from teleop.analysis import criterion as crit
-from teleop.analysis.axis_model import Array
-from teleop.analysis.equation_error import EESignals, _filt, model_equation_error
-from teleop.analysis.fit import NUMERIC_FAILURES, FitData, ModelFit, build, fit_model
-from teleop.analysis.library import PREFIX, WAVE, Term, column, resolve
-from teleop.analysis.model import AxisNominal
-from teleop.analysis.results import DiagnoseOptions, EffectResult, ProposedTerm
-from teleop.analysis.select import _holdout_gain, informative, select_oe
+from teleop.diagnose import criterion as crit
+from teleop.diagnose.axis_model import Array
+from teleop.diagnose.equation_error import EESignals, _filt, model_equation_error
+from teleop.diagnose.fit import NUMERIC_FAILURES, FitData, ModelFit, build, fit_model
+from teleop.diagnose.library import PREFIX, WAVE, Term, column, resolve
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.results import DiagnoseOptions, EffectResult, ProposedTerm
+from teleop.diagnose.select import _holdout_gain, informative, select_oe
 
 STLSQ_SHARE = 0.1
 DELAYS_S = (0.005, 0.01, 0.02, 0.05, 0.1)

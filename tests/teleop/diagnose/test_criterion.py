@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from teleop.analysis.ambiguity import ambiguous
-from teleop.analysis.criterion import effective_n, judge, score, unexplained
+from teleop.diagnose.ambiguity import ambiguous
+from teleop.diagnose.criterion import effective_n, judge, score, unexplained
 
 
 def test_effective_sample_size_counts_coloured_noise_as_fewer_samples() -> None:

@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from teleop.analysis.axis_model import ROTOR_FRACTION
-from teleop.analysis.model import AxisNominal
+from teleop.diagnose.axis_model import ROTOR_FRACTION
+from teleop.diagnose.model import AxisNominal
 
 #: Effects that only exist when there is an input.
 INPUT_EFFECTS = ("dead_time", "actuator_saturation", "actuator_gain", "actuator_lag",

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from teleop.analysis.axis_model import Array
+from teleop.diagnose.axis_model import Array
 
 
 @dataclass(frozen=True, slots=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from teleop.analysis.diagnose import Diagnosis
+from teleop.diagnose.diagnose import Diagnosis
 from teleop.errors import UserInputError
 
 

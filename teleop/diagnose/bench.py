@@ -8,9 +8,9 @@ from typing import Any
 
 def bench_diagnose() -> dict[str, Any]:
     """Diagnose a synthetic 60 s, 1 kHz axis recording (random input, Coulomb friction)."""
-    from teleop.analysis.diagnose import DiagnoseOptions, diagnose
-    from teleop.analysis.model import AxisNominal
-    from teleop.analysis.synth import INPUT_COL, OUTPUT_COL, make_case
+    from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
+    from teleop.diagnose.model import AxisNominal
+    from teleop.diagnose.synth import INPUT_COL, OUTPUT_COL, make_case
 
     case = make_case(("coulomb_friction",), "random", seed=7, duration_s=60.0, rate_hz=1000.0)
     p = case.params

@@ -1,9 +1,9 @@
-"""Output-error diagnosis of any :class:`~teleop.analysis.model.NominalModel` (e.g. the finger).
+"""Output-error diagnosis of any :class:`~teleop.diagnose.model.NominalModel` (e.g. the finger).
 
 Used for models the library does not know (the CLI wires them in from ``sim/``).  Suited to
 short or static recordings: the measurement noise is given (``noise_std``, e.g. an instrument's
 resolution) rather than estimated.  Effects are kept under the shared rule
-(:mod:`teleop.analysis.criterion`, known-noise form); with a few static points there is no
+(:mod:`teleop.diagnose.criterion`, known-noise form); with a few static points there is no
 held-out part, so the score alone decides.
 """
 
@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-from teleop.analysis import criterion as crit
-from teleop.analysis.axis_model import Array
-from teleop.analysis.candidates import explanation, neutral
-from teleop.analysis.diagnose import EffectResult, nrmse
-from teleop.analysis.model import NominalModel
+from teleop.diagnose import criterion as crit
+from teleop.diagnose.axis_model import Array
+from teleop.diagnose.candidates import explanation, neutral
+from teleop.diagnose.diagnose import EffectResult, nrmse
+from teleop.diagnose.model import NominalModel
 from teleop.effects import CATALOG, EffectSet
 
 

@@ -15,7 +15,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from teleop.analysis.axis_model import AXIS_TERMS
+from teleop.diagnose.axis_model import AXIS_TERMS
 from teleop.effects import EffectSet
 from teleop.errors import UserInputError
 

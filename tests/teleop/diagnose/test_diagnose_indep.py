@@ -10,11 +10,11 @@ from __future__ import annotations
 import functools
 
 import pytest
-from indep_axis import IndepCase, make  # tests/teleop/analysis/indep_axis.py
+from indep_axis import IndepCase, make  # tests/teleop/diagnose/indep_axis.py
 
-from teleop.analysis.diagnose import DiagnoseOptions, Diagnosis, diagnose
-from teleop.analysis.library import Term
-from teleop.analysis.report import to_json
+from teleop.diagnose.diagnose import DiagnoseOptions, Diagnosis, diagnose
+from teleop.diagnose.library import Term
+from teleop.diagnose.report import to_json
 
 CONCEALED = ("coulomb_friction", "dead_time", "sensor_offset", "actuator_gain",
              "actuator_saturation")

@@ -12,11 +12,11 @@ import math
 import numpy as np
 import pytest
 
-from teleop.analysis import axis_model, fit
-from teleop.analysis.diagnose import diagnose
-from teleop.analysis.model import parse_nominal
-from teleop.analysis.results import DiagnoseOptions
-from teleop.analysis.synth import INPUT_COL, OUTPUT_COL, make_case
+from teleop.diagnose import axis_model, fit
+from teleop.diagnose.diagnose import diagnose
+from teleop.diagnose.model import parse_nominal
+from teleop.diagnose.results import DiagnoseOptions
+from teleop.diagnose.synth import INPUT_COL, OUTPUT_COL, make_case
 from teleop.effects import EffectSet
 
 

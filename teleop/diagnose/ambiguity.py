@@ -1,14 +1,14 @@
 """Effects the data given cannot tell apart, and the experiment that would separate them.
 
 Two candidates are indistinguishable on a recording when the runner-up's score is within the
-selection rule's own threshold of the chosen effect's (:mod:`teleop.analysis.criterion`): the
+selection rule's own threshold of the chosen effect's (:mod:`teleop.diagnose.criterion`): the
 data hold no strong evidence for one over the other.  The report then names both and the
 experiment that separates them (from the physics of the pair, not from the recording).
 """
 
 from __future__ import annotations
 
-from teleop.analysis.criterion import DEFAULT, Criterion
+from teleop.diagnose.criterion import DEFAULT, Criterion
 
 SEPARATE: dict[frozenset[str], str] = {
     frozenset({"dead_time", "actuator_lag"}):

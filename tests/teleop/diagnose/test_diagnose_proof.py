@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from teleop.analysis.axis_model import simulate_axis
-from teleop.analysis.diagnose import DiagnoseOptions, Diagnosis, diagnose
-from teleop.analysis.model import AxisNominal
-from teleop.analysis.synth import (
+from teleop.diagnose.axis_model import simulate_axis
+from teleop.diagnose.diagnose import DiagnoseOptions, Diagnosis, diagnose
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.synth import (
     INPUT_COL,
     OUTPUT_COL,
     SIGNALS,

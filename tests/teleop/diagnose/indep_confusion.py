@@ -1,6 +1,6 @@
 """Confusion matrix of ``teleop diagnose`` on the independent axis batch (``indep_axis.py``).
 
-    python tests/teleop/analysis/indep_confusion.py [PER_CLASS] [SEED]
+    python tests/teleop/diagnose/indep_confusion.py [PER_CLASS] [SEED]
 
 Case ``i`` of class ``j`` uses seed ``SEED + 11 i + j`` (the scheme of
 ``test_diagnose_indep.py``; the stride 11 gives every class both input kinds).  Prints one markdown table: per concealed class, how often it was
@@ -20,8 +20,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from indep_axis import make  # noqa: E402
 
-from teleop.analysis.diagnose import DiagnoseOptions, Diagnosis, diagnose  # noqa: E402
-from teleop.analysis.report import to_json  # noqa: E402
+from teleop.diagnose.diagnose import DiagnoseOptions, Diagnosis, diagnose  # noqa: E402
+from teleop.diagnose.report import to_json  # noqa: E402
 
 CONCEALED = ("coulomb_friction", "dead_time", "sensor_offset", "actuator_gain",
              "actuator_saturation")

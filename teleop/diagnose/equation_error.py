@@ -15,8 +15,8 @@ import numpy as np
 from scipy import optimize
 from scipy import signal as sps
 
-from teleop.analysis.axis_model import Array, AxisParams, delayed, input_effort, lagged
-from teleop.analysis.model import AxisNominal
+from teleop.diagnose.axis_model import Array, AxisParams, delayed, input_effort, lagged
+from teleop.diagnose.model import AxisNominal
 from teleop.effects import EffectSet
 
 EE_EFFECTS = ("dead_time", "coulomb_friction", "asymmetric_friction", "stiction",

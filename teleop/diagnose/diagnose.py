@@ -1,8 +1,8 @@
 """The diagnose pipeline for the axis model: nominal fit, residual, windows, effects, ranking.
 
 Pure functions over recordings; the result is a frozen :class:`Diagnosis`
-(:mod:`teleop.analysis.results`) that the terminal report, the JSON writer and the plot consume.
-Effect selection lives in :mod:`teleop.analysis.select`.
+(:mod:`teleop.diagnose.results`) that the terminal report, the JSON writer and the plot consume.
+Effect selection lives in :mod:`teleop.diagnose.select`.
 
 Analysis mode: output-error (simulate and compare positions) when the fitted nominal simulation
 tracks the measurement (NRMSE below ``OE_DRIFT_NRMSE``); otherwise (a simulation that drifts or
@@ -16,10 +16,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from teleop.analysis import candidates as cand
-from teleop.analysis import library
-from teleop.analysis.axis_model import Array
-from teleop.analysis.equation_error import (
+from teleop.diagnose import candidates as cand
+from teleop.diagnose import library
+from teleop.diagnose.axis_model import Array
+from teleop.diagnose.equation_error import (
     EEFit,
     EESignals,
     ee_apply,
@@ -27,11 +27,11 @@ from teleop.analysis.equation_error import (
     ee_signals,
     model_equation_error,
 )
-from teleop.analysis.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
-from teleop.analysis.model import AxisNominal
-from teleop.analysis.propose import select_with_library
-from teleop.analysis.residual import analyse_residual, noise_std
-from teleop.analysis.results import (
+from teleop.diagnose.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.propose import select_with_library
+from teleop.diagnose.residual import analyse_residual, noise_std
+from teleop.diagnose.results import (
     DiagnoseOptions,
     Diagnosis,
     EffectResult,
@@ -40,8 +40,8 @@ from teleop.analysis.results import (
     Validation,
     nrmse,
 )
-from teleop.analysis.select_ee import select_ee
-from teleop.analysis.windows import conditions, excess, locate_windows, moving_rms
+from teleop.diagnose.select_ee import select_ee
+from teleop.diagnose.windows import conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
 from teleop.recording import Recording
 

@@ -1,7 +1,7 @@
 """Output-error (simulation) fits of the axis model, nominal or augmented with catalog effects.
 
 Parameters: the nominal model's refinable terms (within their bounds), one internal coordinate per
-effect (see :mod:`teleop.analysis.candidates`) and the initial position and velocity.  The
+effect (see :mod:`teleop.diagnose.candidates`) and the initial position and velocity.  The
 simulated output is compared with the measurement on the fit grid; ``scipy.optimize.least_squares``
 (trust region reflective, bounded) minimises the sum of squares.  Uncertainty: the Gauss-Newton
 covariance ``s^2 (J^T J)^-1`` at the solution.
@@ -15,10 +15,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import optimize
 
-from teleop.analysis import candidates as cand
-from teleop.analysis import library
-from teleop.analysis.axis_model import Array, AxisParams, simulate_axis
-from teleop.analysis.model import AxisNominal
+from teleop.diagnose import candidates as cand
+from teleop.diagnose import library
+from teleop.diagnose.axis_model import Array, AxisParams, simulate_axis
+from teleop.diagnose.model import AxisNominal
 from teleop.effects import EffectSet
 
 #: Nominal parameter: the input's sample alignment in s (``axis_model.input_effort``).

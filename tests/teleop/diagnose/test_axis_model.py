@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from teleop.analysis.axis_model import AxisParams, play, simulate_axis
-from teleop.analysis.residual import autocorr, noise_std
+from teleop.diagnose.axis_model import AxisParams, play, simulate_axis
+from teleop.diagnose.residual import autocorr, noise_std
 from teleop.effects import EffectSet
 
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import signal as sps
 
-from teleop.analysis.axis_model import ROTOR_FRACTION, Array, AxisParams, simulate_axis
+from teleop.diagnose.axis_model import ROTOR_FRACTION, Array, AxisParams, simulate_axis
 from teleop.effects import EffectSet
 from teleop.recording import Recording
 
@@ -113,7 +113,7 @@ def make_case(effects: tuple[str, ...], signal: str | None, seed: int, *,
     if u is not None:
         cols[INPUT_COL] = u
     cols[OUTPUT_COL] = y
-    meta = [("generator", "teleop.analysis.synth"), ("seed", str(seed))]
+    meta = [("generator", "teleop.diagnose.synth"), ("seed", str(seed))]
     return SynthCase(Recording.from_columns(cols, meta), p, eff, signal or "free", sigma, seed)
 
 
@@ -130,6 +130,6 @@ def make_validation(case: SynthCase, signal: str | None, seed: int, *,
     if u is not None:
         cols[INPUT_COL] = u
     cols[OUTPUT_COL] = y
-    rec = Recording.from_columns(cols, [("generator", "teleop.analysis.synth"),
+    rec = Recording.from_columns(cols, [("generator", "teleop.diagnose.synth"),
                                         ("seed", str(seed))])
     return SynthCase(rec, p, eff, signal or "free", case.noise_std, seed)

@@ -1,5 +1,5 @@
 """An independent generator of driven-axis recordings for the diagnose proof (not the
-project's own :mod:`teleop.analysis.synth` / :mod:`teleop.analysis.axis_model`).
+project's own :mod:`teleop.diagnose.synth` / :mod:`teleop.diagnose.axis_model`).
 
 Own code path throughout: an adaptive Runge-Kutta integrator (``scipy.integrate.solve_ivp``,
 RK45) on a smooth (tanh) Coulomb law, the input delayed by interpolation, own input kinds
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from teleop.analysis.model import AxisNominal
+from teleop.diagnose.model import AxisNominal
 from teleop.recording import Recording
 
 RATE_HZ = 1000.0
