@@ -188,7 +188,8 @@ def diagnose_finger(args: argparse.Namespace) -> int:
     from teleop.diagnose.generic import diagnose_model
     from teleop.recording import read_recording
 
-    recs = [read_recording(p, allow_nan=True) for p in args.recordings]
+    recs = [read_recording(p, allow_nan=True).skip(getattr(args, "skip", 0.0))
+            for p in args.recordings]
     if len(recs) == 1 and (recs[0].meta_value("experiment") in DYNAMIC_EXPERIMENTS
                            or is_hand_recording(recs[0])):
         return diagnose_finger_dynamic(args, recs[0])

@@ -107,7 +107,12 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
                        np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
 
 
-SETTLE_S = 0.4
+SETTLE_S = 1.0  # rest after a restart: the free finger crosses its travel at the driver's speed
+
+
+def settle_s(eff: EffectSet) -> float:
+    """How long a restarting segment settles: :data:`SETTLE_S` plus any dead time."""
+    return SETTLE_S + eff.dead_time
 
 
 def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObject,
@@ -115,7 +120,7 @@ def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObjec
     """The free finger at rest under a position goal (a segment restarting after contact)."""
     state = initial_finger_state(p)
     cmd = MotorCommand("position", goal_rad=goal_rad)
-    for _ in range(int(SETTLE_S / dt_s)):
+    for _ in range(int(settle_s(eff) / dt_s)):
         state = finger_step(state, cmd, p, obj, eff, dt_s)
     return state
 
@@ -128,7 +133,7 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
     if engine(engine_name).name == "compiled":
         from sim.compiled_dynamic import simulate_compiled
 
-        return simulate_compiled(p, eff, data, dt_s, SETTLE_S)
+        return simulate_compiled(p, eff, data, dt_s, settle_s(eff))
     obj = ContactObject(kind="none")
     state = initial_finger_state(p)
     t = data.t_s

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from teleop.commands.common import (
     add_json_option,
@@ -21,9 +20,6 @@ from teleop.commands.common import (
     nonneg_float,
     write_json,
 )
-
-if TYPE_CHECKING:
-    from teleop.recording import Recording
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -77,19 +73,6 @@ def _default_output(columns: tuple[str, ...], input_col: str | None) -> str:
     raise UserInputError("--output not given and no column ending in _rad or _m to default to")
 
 
-def _skip(rec: Recording, skip_s: float) -> Recording:
-    """``rec`` without its first ``skip_s`` seconds."""
-    from teleop.errors import RecordingError
-    from teleop.recording import Recording
-
-    if skip_s <= 0:
-        return rec
-    keep = rec.t_s >= rec.t_s[0] + skip_s
-    if not keep.any():
-        raise RecordingError(f"{rec.source}: --skip {skip_s} s leaves no data")
-    return Recording(rec.columns, rec.data[keep], rec.meta, source=rec.source)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the diagnosis and print/write the results."""
     from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
@@ -112,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
                                  "(sim/finger_diagnose.py) is not available in this "
                                  "build") from None
         return int(diagnose_finger(args))
-    recs = [_skip(read_recording(p, allow_nan=True), args.skip) for p in args.recordings]
+    recs = [read_recording(p, allow_nan=True).skip(args.skip) for p in args.recordings]
     output = args.output_col or _default_output(recs[0].columns, args.input_col)
     for r in recs:
         r.column(output)
@@ -120,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
             r.column(args.input_col)
     nominal = parse_nominal(args.nominal, args.tolerance)
     opts = DiagnoseOptions(nominal, args.input_col, output, analysis=args.analysis)
-    val = (_skip(read_recording(args.validate, allow_nan=True), args.skip) if args.validate
+    val = (read_recording(args.validate, allow_nan=True).skip(args.skip) if args.validate
            else None)
     try:
         d = diagnose(recs, opts, val)
