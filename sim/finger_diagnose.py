@@ -156,7 +156,8 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
         if finger is None:
             raise RecordingError(f"{rec.source}: a hand recording holds three fingers; name one "
                                  "with --finger 1|2|3")
-        data = hand_finger_data(rec, int(finger), args.output_col or "motor_angle_rad")
+        data = hand_finger_data(rec, int(finger), args.output_col or "motor_angle_rad",
+                                split_gaps=bool(getattr(args, "split_gaps", False)))
         what = (f"teleop diagnose {rec.source} --model finger --finger {finger} (hand "
                 f"recording, set-points from 'setpoint_rad_f{finger}')")
     else:

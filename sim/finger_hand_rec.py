@@ -56,17 +56,21 @@ def _col(rec: Recording, name: str, finger: int) -> np.ndarray:
     return v
 
 
-def _check_timing(rec: Recording) -> None:
+def _gaps(rec: Recording, split: bool) -> np.ndarray:
+    """Rows after which the recording has a gap (a stalled hand tick, e.g. bus retries):
+    refused in one line unless ``split``, when the simulation restarts after each."""
     t = rec.t_s
     if len(t) < 3:
         raise RecordingError(f"{rec.source}: {len(t)} rows is too short to diagnose")
     dts = np.diff(t)
     med = float(np.median(dts))
-    if np.max(dts) > MAX_GAP_FACTOR * med:
-        i = int(np.argmax(dts))
+    gap = dts > MAX_GAP_FACTOR * med
+    if gap.any() and not split:
+        i = int(np.argmax(gap))
         raise RecordingError(f"{rec.source}: column 't_s' has a gap of {dts[i]:.3g} s at data "
-                             f"row {i + 2} (median step {med:.3g} s); split the recording, or "
-                             f"--skip {t[i + 1] - t[0]:.3g} past it")
+                             f"row {i + 2} (median step {med:.3g} s); split the recording, "
+                             f"--skip {t[i + 1] - t[0]:.3g} past it, or --split-gaps")
+    return np.flatnonzero(gap)
 
 
 def _meta_float(rec: Recording, key: str) -> float:
@@ -94,7 +98,7 @@ def dynamixel_targets(setpoint_rad: np.ndarray, joint_rad: np.ndarray, load_unit
 
 
 def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad",
-                     fit_rate_hz: float = 50.0) -> DynamicData:
+                     fit_rate_hz: float = 50.0, split_gaps: bool = False) -> DynamicData:
     """Commands, measurement and contact mask of one finger of a hand recording."""
     if finger not in (1, 2, 3):
         raise RecordingError(f"{rec.source}: --finger {finger}: a hand has fingers 1, 2 and 3 "
@@ -102,7 +106,7 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
     if output not in ("motor_angle_rad", "proximal_angle_rad"):
         raise RecordingError(f"{rec.source}: --output must be motor_angle_rad or "
                              f"proximal_angle_rad for a hand recording (got {output!r})")
-    _check_timing(rec)
+    gaps = _gaps(rec, split_gaps)
     t = rec.t_s
     sp = _col(rec, f"setpoint_rad_f{finger}", finger)
     motor = _col(rec, f"motor_angle_rad_f{finger}", finger)
@@ -126,6 +130,7 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
     # a recording cut after its start (--skip) begins with the finger anywhere: the first row
     # is not simulated, the next restarts settled at the measured angle (as after a contact)
     active[0] = active[0] and abs(float(motor[0])) < START_OPEN_RAD
+    active[gaps] = False  # the row before a gap is not simulated: the next one restarts
     compare = active.copy()
     n_seg = 0
     for i in np.flatnonzero(active[1:] & ~active[:-1]) + 1:  # restarts
@@ -139,12 +144,18 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
         raise RecordingError(f"{rec.source}: finger {finger} is in contact on {contact.sum()} of "
                              f"{len(t)} rows ('contacts_f{finger}'); {len(keep)} contact-free "
                              f"samples is too few to diagnose (need {MIN_COMPARED})")
-    note = ""
+    notes = []
+    if len(gaps):
+        notes.append(f"{len(gaps)} gap(s) in 't_s' (first after data row {gaps[0] + 1}, "
+                     f"longest {float(np.max(np.diff(t)[gaps])):.3g} s): the simulation "
+                     "restarts after each (--split-gaps)")
     if contact.any():
-        note = (f"{int(contact.sum())} of {len(t)} rows in contact ('contacts_f{finger}' > 0, "
-                f"{float(np.sum(np.diff(t)[contact[:-1]])):.1f} s) excluded: the object is not "
-                f"in the recording; the simulation restarts {n_seg} time(s) settled at the "
-                f"measured motor angle, {SETTLE_ROWS_S:g} s after each not compared")
+        notes.append(f"{int(contact.sum())} of {len(t)} rows in contact ('contacts_f{finger}' "
+                     f"> 0, {float(np.sum(np.diff(t)[contact[:-1]])):.1f} s) excluded: the "
+                     f"object is not in the recording; the simulation restarts {n_seg} time(s) "
+                     f"settled at the measured motor angle, {SETTLE_ROWS_S:g} s after each not "
+                     "compared")
+    note = "; ".join(notes)
     goal = JOINT_RATIO * motor  # joint-side motor angle -> shaft
     return DynamicData(t, cmds, y, output, keep, 1e-3,
                        out_scale=1.0 / JOINT_RATIO if output == "motor_angle_rad" else 1.0,

@@ -35,6 +35,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--finger", type=int, default=None, metavar="N",
                    help="--model finger on a 'teleop up --record' hand recording: which finger "
                    "(1-3); its set-points are the commands, contact rows are excluded")
+    p.add_argument("--split-gaps", action="store_true",
+                   help="--model finger --finger N: a gap in the hand recording's time (a "
+                   "stalled tick, e.g. bus retries) restarts the simulation instead of being "
+                   "refused")
     p.add_argument("--nominal", default="inertia,viscous,stiffness", metavar="TERMS",
                    help="axis terms the nominal model has: inertia, viscous, stiffness, gravity, "
                    "coulomb, offset; TERM=VALUE gives a nominal value refined within "

@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from teleop.diagnose import library
+from teleop.diagnose import axis_kernel, library
 from teleop.effects import EffectSet
 
 Array = NDArray[np.float64]
@@ -149,6 +149,28 @@ def _transition(J: float, b: float, k: float, dt: float) -> tuple[float, ...]:
     return (e[0][0], e[0][1], e[1][0], e[1][1], e[0][2], e[1][2])
 
 
+def _step_maps(t: Array, J: float, b: float, k: float, max_dt_s: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(row of each sample interval, one-step maps, sub-steps, sub-step length): one row per
+    distinct interval length (one for a uniformly sampled record)."""
+    dts = np.diff(t)
+
+    def step_map(dt_total: float) -> tuple[int, float, tuple[float, ...]]:
+        nsub = max(1, int(math.ceil(dt_total / max_dt_s - 1e-9)))
+        return nsub, dt_total / nsub, _transition(J, b, k, dt_total / nsub)
+
+    if float(np.ptp(dts)) <= 1e-9 * float(np.median(dts)):
+        rows = [step_map(float(np.median(dts)))]
+        which = np.zeros(len(dts), dtype=np.int64)
+    else:
+        # keyed by the length rounded to 1e-12 s; each key's map from its first interval
+        _, first, which = np.unique(np.round(dts, 12), return_index=True, return_inverse=True)
+        rows = [step_map(float(dts[i])) for i in first]
+        which = which.astype(np.int64).ravel()
+    return (which, np.array([r[2] for r in rows]), np.array([r[0] for r in rows], np.int64),
+            np.array([r[1] for r in rows]))
+
+
 def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = EffectSet(),
                   x0: float = 0.0, v0: float = 0.0, max_dt_s: float = 1e-3,
                   u_before: float | None = None) -> Array:
@@ -163,109 +185,32 @@ def simulate_axis(t: Array, u: Array | None, p: AxisParams, eff: EffectSet = Eff
     f_in = np.zeros(n) if u is None else input_effort(t, np.asarray(u, float), eff,
                                                                 p.input_shift_s, u_before)
     coefs = dict(p.terms)
-    extra = library.state_effort(coefs)
     if u is not None:
         for d, c in library.input_terms(coefs):
             f_in = f_in + c * delayed(t, np.asarray(u, float), d + p.input_shift_s)
-    out = np.empty(n)
     J = p.inertia
-    b, k, f0 = p.viscous, p.stiffness, p.offset
-    k3 = eff.nonlinear_stiffness
-    g = p.gravity + eff.gravity
-    fc = p.coulomb + eff.coulomb_friction
-    fa = eff.asymmetric_friction
-    fs = eff.stiction
-    vs = max(p.stribeck_velocity, 1e-12)
-    friction = fc > 0.0 or fa > 0.0 or fs > 0.0
+    b, k = p.viscous, p.stiffness
     series = math.isfinite(eff.series_compliance)
     ks = eff.series_compliance if series else 0.0
     ja = ROTOR_FRACTION * J
     cs = 2.0 * SPRING_DAMPING_RATIO * math.sqrt(ks * ja * J / (ja + J)) if series else 0.0
     if series:
         max_dt_s = min(max_dt_s, 0.2 / math.sqrt(ks / ja + ks / J))
+    fc = p.coulomb + eff.coulomb_friction
+    friction = fc > 0.0 or eff.asymmetric_friction > 0.0 or eff.stiction > 0.0
+    consts = np.array([k, p.offset, p.gravity + eff.gravity, eff.nonlinear_stiffness, fc,
+                       eff.asymmetric_friction, eff.stiction, max(p.stribeck_velocity, 1e-12),
+                       ks, cs, ja, float(friction), float(series)])
     x, v = float(x0), float(v0)
-    xa, va = x, v  # actuator side (series spring)
-    if series and n:
-        xa = x + float(f_in[0]) / ks
-    stuck = False
-    tl = t.tolist()
-    fl = f_in.tolist()
-    sin = math.sin
-    exp = math.exp
-    big = 1e12
-    cache: dict[float, tuple[int, float, tuple[float, ...]]] = {}
+    xa = x + float(f_in[0]) / ks if series and n else x  # actuator side (series spring)
+    out = np.empty(n)
     if n:
         out[0] = x
-    dts = np.diff(t)
-    uniform = n > 1 and float(np.ptp(dts)) <= 1e-9 * float(np.median(dts))
-
-    def step_map(dt_total: float) -> tuple[int, float, tuple[float, ...]]:
-        nsub = max(1, int(math.ceil(dt_total / max_dt_s - 1e-9)))
-        return nsub, dt_total / nsub, _transition(J, b, k, dt_total / nsub)
-
-    if uniform:
-        nsub, dt, (p00, p01, p10, p11, g0, g1) = step_map(float(np.median(dts)))
-    for i in range(n - 1):
-        if not uniform:
-            dt_total = tl[i + 1] - tl[i]
-            key = round(dt_total, 12)
-            got = cache.get(key)
-            if got is None:
-                got = step_map(dt_total)
-                cache[key] = got
-            nsub, dt, (p00, p01, p10, p11, g0, g1) = got
-        fi = fl[i]
-        for _ in range(nsub):
-            if series:
-                fsp = ks * (xa - x) + cs * (va - v)
-                va += (fi - fsp) / ja * dt
-                xa += va * dt
-                force = fsp
-            else:
-                force = fi
-            force += f0
-            if extra is not None:
-                force += extra(x, v)
-            if g != 0.0:
-                force -= g * sin(x)
-            if k3 != 0.0:
-                force -= k3 * x * x * x
-            if friction:
-                if stuck:
-                    f_rest = force - k * x
-                    if -(fc + fs) <= f_rest <= fc + fs + fa:
-                        continue  # stays stuck
-                    stuck = False
-                    s = 1.0 if f_rest > 0 else -1.0
-                else:
-                    s = 1.0 if v > 0 else (-1.0 if v < 0 else (1.0 if force - k * x > 0
-                                                                else -1.0))
-                q = v / vs  # Stribeck term; beyond |q| = 30 it is below 1e-390: zero
-                level = fc + (fs * exp(-q * q) if -30.0 < q < 30.0 else 0.0) + (
-                    fa if s > 0 else 0.0)
-                fr = force - level * s
-                vn = p10 * x + p11 * v + g1 * fr
-                if vn * s < 0.0:
-                    # the motion stops within the step; it sticks unless the other efforts
-                    # overcome static friction, in which case it reverses
-                    f_rest = force - k * x
-                    if -(fc + fs) <= f_rest <= fc + fs + fa:
-                        x += 0.5 * v * dt * v / (v - vn)
-                        v = 0.0
-                        stuck = True
-                        continue
-                    s = -s
-                    level = fc + fs + (fa if s > 0 else 0.0)
-                    fr = force - level * s
-                    vn = p10 * x + p11 * v + g1 * fr
-                x = p00 * x + p01 * v + g0 * fr
-                v = vn
-            else:
-                x, v = p00 * x + p01 * v + g0 * force, p10 * x + p11 * v + g1 * force
-        if not (-big < x < big and -big < v < big):
-            out[i + 1:] = math.nan
-            break
-        out[i + 1] = x
+    if n > 1:
+        which, maps, nsubs, dts = _step_maps(t, J, b, k, max_dt_s)
+        kinds, tc, tw = library.state_terms(coefs)
+        axis_kernel.kernel()(np.ascontiguousarray(f_in, dtype=np.float64), which, maps, nsubs,
+                             dts, kinds, tc, tw, consts, np.array([x, v, xa, v]), out)
     y = play(out, eff.backlash) if eff.backlash > 0 else out
     if eff.sensor_offset != 0.0:
         y = y + eff.sensor_offset

@@ -22,8 +22,6 @@ coefficient travels through every fit with the other parameters.
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,27 +92,15 @@ def resolve(vals: dict[str, float]) -> tuple[tuple[str, float], ...]:
     return tuple(out)
 
 
-def state_effort(coefs: dict[str, float]) -> Callable[[float, float], float] | None:
-    """The scalar effort ``sum c phi(x, v)`` of the state terms among ``coefs`` (keys
-    ``term:...``) for the simulation loop, or None when there are none."""
+def state_terms(coefs: dict[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The state terms among ``coefs`` (keys ``term:...``) for the simulation kernel
+    (:mod:`teleop.diagnose.axis_kernel`): (kind codes, index in :data:`STATE_KINDS`;
+    coefficients; wavenumbers, 0 for kinds without one), in the order of ``coefs``."""
     parts = [(Term.parse(k), c) for k, c in coefs.items()
              if k.startswith(PREFIX) and Term.parse(k).kind in STATE_KINDS and c != 0.0]
-    if not parts:
-        return None
-    sin, cos = math.sin, math.cos
-    fns: list[Callable[[float, float], float]] = []
-    for term, c in parts:
-        w = term.const
-        fns.append({"sin": lambda x, v, c=c, w=w: c * sin(w * x),
-                    "cos": lambda x, v, c=c, w=w: c * cos(w * x),
-                    "vabsv": lambda x, v, c=c: c * v * abs(v),
-                    "v3": lambda x, v, c=c: c * v * v * v,
-                    "v2": lambda x, v, c=c: c * v * v,
-                    "x2": lambda x, v, c=c: c * x * x,
-                    "x3": lambda x, v, c=c: c * x * x * x}[term.kind])
-    if len(fns) == 1:
-        return fns[0]
-    return lambda x, v: sum(f(x, v) for f in fns)
+    return (np.array([STATE_KINDS.index(t.kind) for t, _ in parts], dtype=np.int64),
+            np.array([c for _, c in parts], dtype=np.float64),
+            np.array([t.const for t, _ in parts], dtype=np.float64))
 
 
 def input_terms(coefs: dict[str, float]) -> tuple[tuple[float, float], ...]:

@@ -91,3 +91,32 @@ def test_noise_estimate_and_whiteness() -> None:
     assert abs(noise_std(y) / 0.01 - 1) < 0.1
     ac = autocorr(rng.standard_normal(5000), 10)
     assert ac[0] == 1.0 and np.max(np.abs(ac[1:])) < 0.06
+
+
+def test_the_compiled_kernel_equals_the_interpreted_loop_bit_for_bit() -> None:
+    """The numba kernel is the same source as the interpreted loop: same floats, every branch
+    (friction sticking and reversing, series spring, library terms, irregular steps)."""
+    from teleop.diagnose import axis_kernel
+
+    rng = np.random.default_rng(11)
+    compiled = axis_kernel.kernel()
+    assert compiled is not axis_kernel.integrate  # numba is installed: it is compiled
+    terms = (("term:sin:25", 0.01), ("term:cos:9", -0.005), ("term:vabsv", -0.002),
+             ("term:v3", -0.001), ("term:v2", 0.001), ("term:x2", 0.01), ("term:x3", -0.3))
+    for trial in range(6):
+        n = 1200
+        t = (np.arange(n) * 1e-3 if trial % 2 else
+             np.cumsum(rng.uniform(0.7e-3, 2.4e-3, n)))  # irregular: two sub-steps at times
+        u = np.cumsum(rng.normal(0, 0.3, n)) * 0.05 + np.sin(7 * t)
+        p = AxisParams(inertia=0.02, viscous=0.05, stiffness=2.0, gravity=0.1 * (trial % 3),
+                       coulomb=0.03, terms=terms if trial % 4 == 0 else ())
+        eff = EffectSet(stiction=0.2 * (trial % 2), asymmetric_friction=0.05,
+                        series_compliance=60.0 if trial % 3 == 0 else math.inf)
+        fast = simulate_axis(t, u, p, eff, x0=0.01)
+        try:
+            axis_kernel._COMPILED[:] = [axis_kernel.integrate]
+            slow = simulate_axis(t, u, p, eff, x0=0.01)
+        finally:
+            axis_kernel._COMPILED[:] = [compiled]
+        assert np.isfinite(fast).all(), trial
+        assert np.array_equal(fast, slow), trial
