@@ -111,6 +111,8 @@ def run(args: argparse.Namespace) -> int:
            else None)
     try:
         d = diagnose(recs, opts, val)
+    except RecordingError:  # the recording's own fault, already said in one line
+        raise
     except NUMERIC_FAILURES as e:  # candidates that fail are disqualified; this is the nominal
         raise RecordingError(f"{args.recordings[0]}: the nominal {args.model} model cannot be "
                              f"fitted to this recording ({type(e).__name__}: {e}); check "

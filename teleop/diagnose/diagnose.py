@@ -61,15 +61,16 @@ def _signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None
             raise RecordingError(f"{where}: column {name!r} has a gap (missing or non-finite "
                                  f"value) at data row {int(np.argmax(bad)) + 1}")
     if len(t) < MIN_SAMPLES:
-        raise RecordingError(f"{where}: {len(t)} samples is too short to diagnose (need at least "
-                             f"{MIN_SAMPLES})")
+        raise RecordingError(f"{where}: column 't_s' has {len(t)} data rows, too short to "
+                             f"diagnose (need at least {MIN_SAMPLES})")
     if float(np.std(y)) <= 0:
         raise RecordingError(f"{where}: column {opts.output_col!r} never changes; nothing to fit")
     dts = np.diff(t)
     if np.max(dts) > 5 * np.median(dts):
         i = int(np.argmax(dts))
-        raise RecordingError(f"{where}: sampling gap of {dts[i]:.3g} s after t={t[i]:.6g} s "
-                             f"(uneven sampling; split the recording)")
+        raise RecordingError(f"{where}: column 't_s' has a sampling gap of {dts[i]:.3g} s at "
+                             f"data row {i + 2} (t={t[i + 1]:.6g} s; uneven sampling; split the "
+                             "recording)")
     return t, u, y
 
 

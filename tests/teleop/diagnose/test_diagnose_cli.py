@@ -58,8 +58,14 @@ def _write(path: Path, t: np.ndarray, y: np.ndarray) -> Path:
     return path
 
 
+NAMED = {"missing column": ("'theta_rad'",), "not increasing": ("t_s", "row"),
+         "nan gap": ("'angle_rad'", "row 100"), "too short": ("'t_s'",),
+         "time gap": ("'t_s'", "row 1001")}
+"""What the one line must name (column, row) where the problem has them."""
+
+
 @pytest.mark.parametrize("problem", ["missing file", "missing column", "not increasing",
-                                     "nan gap", "too short", "flat", "bad nominal"])
+                                     "nan gap", "too short", "flat", "bad nominal", "time gap"])
 def test_bad_input_is_one_line_and_exit_2(problem: str, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     t = np.arange(2000) / 1000.0
@@ -82,6 +88,8 @@ def test_bad_input_is_one_line_and_exit_2(problem: str, tmp_path: Path,
         path.write_text("\n".join(lines) + "\n")
     elif problem == "too short":
         _write(path, t[:50], y[:50])
+    elif problem == "time gap":
+        _write(path, np.where(t >= 1.0, t + 0.5, t), y)
     elif problem == "flat":
         _write(path, t, np.zeros_like(t))
     elif problem == "bad nominal":
@@ -91,6 +99,7 @@ def test_bad_input_is_one_line_and_exit_2(problem: str, tmp_path: Path,
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert len(err.splitlines()) == 1 and err.startswith("teleop diagnose: error:")
+    assert all(w in err for w in NAMED.get(problem, ())), err
 
 
 def test_parse_nominal_values_and_bounds() -> None:

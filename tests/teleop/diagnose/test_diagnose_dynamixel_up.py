@@ -16,9 +16,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sim.servo_emulator_bench import start_emulator_process, stop_emulator_process
+from teleop.recording import read_recording
 
 DEAD_TIME_S = 0.2
 UP_S = 20
@@ -33,7 +35,25 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def _ticks(csv: Path) -> tuple[int, int]:
+    """(hand rows recorded after the skipped start, rows a 40 Hz hand would have)."""
+    t = read_recording(csv).t_s
+    return int(np.sum(t >= t[0] + SKIP_S)), int((t[-1] - t[0] - SKIP_S) * 40)
+
+
 def _record(tmp: Path, name: str, effect: tuple[str, ...]) -> Path:
+    """One recording; a second try when the hand stalled on more than 40 % of its ticks (bus
+    retries on a machine too loaded to serve the pty in time), said in the failure."""
+    got: list[tuple[int, int]] = []
+    for attempt in range(2):
+        csv = _record_once(tmp, f"{name}{attempt}", effect)
+        got.append(_ticks(csv))
+        if got[-1][0] >= 0.6 * got[-1][1]:
+            return csv
+    raise AssertionError(f"the hand stalled: (rows, 40 Hz ticks) per attempt {got}")
+
+
+def _record_once(tmp: Path, name: str, effect: tuple[str, ...]) -> Path:
     emu, path = start_emulator_process(1, ("--set", "hand.sim.object.kind=none", *effect))
     try:
         port = _free_port()
