@@ -121,6 +121,12 @@ def run(args: argparse.Namespace) -> int:
     bus = make_bus_emulator(protocol, ids, tuple(d.inversion), homes, cfg.hand.sim.object,
                             faults, args.return_delay_us, args.physics, effects,
                             cfg.hand.sim.engine)
+    if args.realtime:  # before the path is printed: a client may write at once
+        from services.runtime import try_realtime_priority
+
+        if not try_realtime_priority(REALTIME_PRIORITY):
+            print("servo-emulator: no real-time priority (needs CAP_SYS_NICE); on a busy "
+                  "machine replies may time out", file=sys.stderr, flush=True)
     emu = PtyServoEmulator(bus, cfg.hand.sim.physics_rate_hz)
     path = emu.open()
     link: Path | None = args.link
@@ -139,12 +145,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"servo-emulator: {len(ids)} MX-28 (protocol {protocol}.0, IDs "
           f"{','.join(map(str, ids))}) on {link or path}; physics: {bus.physics.label}; "
           "Ctrl-C to stop", file=sys.stderr, flush=True)
-    if args.realtime:
-        from services.runtime import try_realtime_priority
-
-        if not try_realtime_priority(REALTIME_PRIORITY):
-            print("servo-emulator: no real-time priority (needs CAP_SYS_NICE); on a busy "
-                  "machine replies may time out", file=sys.stderr, flush=True)
     old = signal.signal(signal.SIGTERM, _stop)
     old_int = signal.signal(signal.SIGINT, _stop)  # also when started with SIGINT ignored
     try:
