@@ -27,10 +27,10 @@ from sim.finger_dynamic import (
 from sim.finger_dynamic import PARAMS as PARAMS_DYN
 from sim.finger_hand_rec import hand_finger_data, is_hand_recording
 from sim.finger_model_file import write_model
-from sim.finger_select import DynamicDiagnosis, diagnose_dynamic, print_progress
 from sim.params import FingerParams, default_finger_params
 from teleop.diagnose.ambiguity import ambiguous
 from teleop.diagnose.candidates import explanation
+from teleop.diagnose.select_sim import DynamicDiagnosis, diagnose_dynamic, print_progress
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording

@@ -32,6 +32,7 @@ from sim.finger import (
     initial_finger_state,
 )
 from sim.params import JOINT_RATIO, FingerParams
+from teleop.diagnose.residual import noise_std
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording
@@ -179,6 +180,23 @@ class FingerDynamicModel:
     tolerance: float = 0.2
     dt_s: float = 2e-3
     engine_name: str = DEFAULT_ENGINE
+
+    def candidates(self) -> dict[str, tuple[tuple[float, ...], tuple[float, float]]]:
+        """Effects the selection tries: (screening grid, bounds)."""
+        return CANDIDATES
+
+    def nominal_start(self) -> tuple[float, ...]:
+        """The calibrated values of the refined parameters."""
+        return tuple(float(getattr(self.base, n)) for n in PARAMS)
+
+    def floor(self) -> tuple[float, float]:
+        """(floor, physics-step error), rms: the noise and the coarse step's own error on the
+        calibrated finger."""
+        nom0 = self.nominal_start()
+        d = replace(self, dt_s=self.data.physics_dt_s).run(nom0, ()) - self.run(nom0, ())
+        d = d[np.isfinite(d)]
+        step_err = float(np.sqrt(np.mean(d ** 2))) if len(d) else 0.0
+        return math.hypot(noise_std(self.data.y[self.data.keep]), step_err), step_err
 
     def params(self, theta: Array | tuple[float, ...]) -> FingerParams:
         """Finger parameters with the refined ones set."""

@@ -1,7 +1,8 @@
-"""Effect selection for the finger against a dynamic recording (``teleop sim`` or a
-``teleop up --record`` hand recording).
+"""Effect selection for a simulated model against a dynamic recording: the finger against a
+``teleop sim`` or ``teleop up --record`` recording (the model object, :class:`SimulatedModel`,
+comes from ``sim/finger_dynamic.py``; the CLI wires it in, this module never imports ``sim/``).
 
-Greedy forward selection: candidates (:data:`sim.finger_dynamic.CANDIDATES`) are screened on a
+Greedy forward selection: the model's candidates (``model.candidates()``) are screened on a
 value grid with the current model held, the best ``refine_top`` are fitted jointly with the
 refined nominal parameters, and the first one that passes the shared selection rule
 (:mod:`teleop.diagnose.criterion`: penalised likelihood with an effective sample size, plus
@@ -14,23 +15,56 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
+from typing import Any, Protocol
 
 import numpy as np
 
-from sim.finger_dynamic import CANDIDATES, PARAMS, FingerDynamicModel, Fit
 from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, judge, unexplained
-from teleop.diagnose.residual import noise_std
 
 Array = np.ndarray
+
+
+class SimulatedModel(Protocol):
+    """What the selection needs of a model simulated against a recording."""
+
+    dt_s: float      # physics step (a dead time is polished in whole steps)
+
+    @property
+    def data(self) -> Any:
+        """The recording as the fit sees it: ``y``, ``keep`` and ``split()``."""
+
+    def candidates(self) -> dict[str, tuple[tuple[float, ...], tuple[float, float]]]:
+        """Effect name -> (screening grid, bounds)."""
+
+    def nominal_start(self) -> tuple[float, ...]:
+        """The calibrated values of the refined parameters."""
+
+    def floor(self) -> tuple[float, float]:
+        """(floor, physics-step error), rms: what no effect can explain."""
+
+    def run(self, theta: Any, effects: tuple[tuple[str, float], ...]) -> Array:
+        """Simulated output on the compared samples."""
+
+    def rss(self, y: Array) -> float:
+        """Training residual sum of squares of a simulated output."""
+
+    def residual(self, f: Any) -> Array:
+        """Training residual of a fit."""
+
+    def fit(self, theta0: Any, effects: tuple[tuple[str, float], ...]) -> Any:
+        """Least-squares fit (``theta``, ``effects``, ``rss``, ``rss_test``, ``y``)."""
+
+    def finish(self, theta: Any, effects: tuple[tuple[str, float], ...]) -> Any:
+        """A fit object for given values (no fitting)."""
 
 
 @dataclass(frozen=True, slots=True)
 class DynamicDiagnosis:
     """What the dynamic finger diagnosis found."""
 
-    nominal: Fit
-    final: Fit
+    nominal: Any                                   # the model's fit objects
+    final: Any
     chosen: tuple[tuple[str, float, float], ...]   # (effect, value, relative rss reduction)
     ranking: tuple[tuple[str, float], ...]         # (effect, relative rss reduction), best first
     floor_rad: float                               # noise + physics-step error (rms)
@@ -45,18 +79,7 @@ def _say(progress: Callable[[str], None] | None, msg: str) -> None:
         progress(msg)
 
 
-def _floor(model: FingerDynamicModel, nom0: tuple[float, ...]) -> tuple[float, float]:
-    """(floor, physics-step error): noise and the coarse step's error on the calibrated finger."""
-    data = model.data
-    fine = replace(model, dt_s=data.physics_dt_s)
-    d = fine.run(nom0, ()) - model.run(nom0, ())
-    d = d[np.isfinite(d)]
-    step_err = float(np.sqrt(np.mean(d ** 2))) if len(d) else 0.0
-    y = data.y[data.keep]
-    return math.hypot(noise_std(y), step_err), step_err
-
-
-def _polish_delay(model: FingerDynamicModel, f: Fit, steps: int = 6) -> Fit:
+def _polish_delay(model: SimulatedModel, f: Any, steps: int = 6) -> Any:
     """A delay acts in whole physics steps, where least squares sees no gradient: scan whole
     steps around the fitted value (the other values held)."""
     eff = dict(f.effects)
@@ -76,15 +99,15 @@ def _rms(rss: float, n: int) -> float:
     return math.sqrt(rss / max(n, 1))
 
 
-def diagnose_dynamic(model: FingerDynamicModel, refine_top: int = 2, max_effects: int = 2,
+def diagnose_dynamic(model: SimulatedModel, refine_top: int = 2, max_effects: int = 2,
                      floor_factor: float = 2.0, criterion: Criterion = DEFAULT,
                      progress: Callable[[str], None] | None = None) -> DynamicDiagnosis:
     """Nominal fit, then forward selection of catalog effects under the shared rule."""
     data = model.data
     ym = data.y[data.keep]
     tr, te = data.split()
-    nom0 = tuple(float(getattr(model.base, n)) for n in PARAMS)
-    floor, step_err = _floor(model, nom0)
+    nom0 = model.nominal_start()
+    floor, step_err = model.floor()
     _say(progress, f"physics step {model.dt_s * 1e3:.1f} ms: error {step_err:.2g} rad; floor "
                    f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples, "
                    f"{len(te)} held out)")
@@ -99,7 +122,7 @@ def diagnose_dynamic(model: FingerDynamicModel, refine_top: int = 2, max_effects
             break  # what is left is noise and the physics step
         have = tuple(e for e, _ in current.effects)
         screened = []
-        for name, (grid, _) in CANDIDATES.items():
+        for name, (grid, _) in model.candidates().items():
             if name in have:
                 continue
             best = min(((model.rss(model.run(current.theta, current.effects + ((name, z),))), z)
