@@ -52,6 +52,15 @@ def pad_contact(o: np.ndarray, cphi: float, sphi: float, ax: float, ay: float, b
         ex = bx - ax
         ey = by - ay
         t = ((cx - ax) * ex + (cy - ay) * ey) / (ex * ex + ey * ey)
+        if 0.0 < t < 1.0:
+            el = math.sqrt(ex * ex + ey * ey)
+            mx = -ey / el
+            my = ex / el
+            h = (cx - ax) * mx + (cy - ay) * my
+            if h <= 0.0:
+                if h <= -o[3]:
+                    return 0.0, 0.0, 0.0, 0.0, 0.0
+                return 1.0, o[3] - h, t, -mx, -my
         t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
         px = ax + t * ex
         py = ay + t * ey

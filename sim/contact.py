@@ -52,7 +52,9 @@ def pad_contact(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: flo
     Returns ``(stiffness_scale, depth_m, t, nx, ny)``: the contact force is
     ``k * depth`` (+ damping) along (nx, ny) (proximal frame, pushing the finger away), applied
     at A + t (B - A); ``stiffness_scale`` (0..1) is the fraction of the pad's stiffness engaged
-    (1 for a point contact).  ``depth_m <= 0`` means no contact.
+    (1 for a point contact).  ``depth_m <= 0`` means no contact.  A cylinder whose centre a
+    pad has been pushed past (on or behind the pad's line) is still pushed against along the
+    pad's normal, deeper as it goes (up to twice the radius), never flipped.
     """
     if obj.kind == "cylinder":
         # object centre in the proximal frame
@@ -61,6 +63,16 @@ def pad_contact(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: flo
         ex = bx - ax
         ey = by - ay
         t = ((cx - ax) * ex + (cy - ay) * ey) / (ex * ex + ey * ey)
+        if 0.0 < t < 1.0:
+            # the centre on or behind the pad's line (the pad pushed past it): the depth
+            # keeps growing along the pad normal instead of flipping the contact normal
+            el = math.sqrt(ex * ex + ey * ey)
+            mx, my = -ey / el, ex / el  # the pad face's outward normal
+            h = (cx - ax) * mx + (cy - ay) * my
+            if h <= 0.0:
+                if h <= -obj.radius_m:
+                    return 0.0, 0.0, 0.0, 0.0, 0.0
+                return 1.0, obj.radius_m - h, t, -mx, -my
         t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
         px = ax + t * ex
         py = ay + t * ey

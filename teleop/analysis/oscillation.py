@@ -77,6 +77,10 @@ class SignalOscillation:
     late_reversals: int  # the same in the late halves
     hf_power_fraction: float
     state: str  # "sustained", "growing" or "none"
+    #: what was examined: "holds" (the analysis segments), "whole run" (no segments: the run
+    #: high-passed) or "growth only" (a repeating script whose holds are all shorter than the
+    #: round trip: the operator's own grasps fill the run, so only growth can be told)
+    judged: str = "holds"
 
     @property
     def unstable(self) -> bool:
@@ -96,7 +100,7 @@ class SignalOscillation:
         return {"amplitude": num(self.amplitude), "early_amplitude": num(self.early_amplitude),
                 "frequency_hz": num(self.frequency_hz), "noise": num(self.noise),
                 "threshold": num(self.threshold), "reversals": self.reversals,
-                "state": self.state}
+                "state": self.state, "judged": self.judged}
 
 
 def block_mean(x: Array, n: int) -> Array:
@@ -188,20 +192,26 @@ def _amplitude(halves: list[Array], noise: float) -> float:
 
 def analyse_oscillation(name: str, t_s: Array, x: Array,
                         segments: Sequence[tuple[float, float]], floor: float,
-                        c: OscillationCriteria = OscillationCriteria()) -> SignalOscillation:
+                        c: OscillationCriteria = OscillationCriteria(),
+                        growth_only: bool = False) -> SignalOscillation:
     """The oscillation of ``x`` within ``segments`` (see the module doc).
 
     Without usable segments the whole run, high-passed at ``c.highpass_hz`` and without its
-    first fifth, is the one segment.
+    first fifth, is the one segment; with ``growth_only`` (the run is the operator's own
+    repeated motion, no hold to judge) only a *growing* oscillation is reported there: the
+    grasps themselves would read as a sustained one.
     """
     t = np.asarray(t_s, float)
     xs = np.asarray(x, float)
     segs = segment_samples(t, xs, segments, c.rate_hz, c.min_segment_s)
     dt = 1.0 / c.rate_hz
+    judged = "holds"
     if not segs:
+        judged = "growth only" if growth_only else "whole run"
         whole = segment_samples(t, xs, [(t[0], t[-1] + 1e-9)], c.rate_hz, 0.0)
         if not whole or len(whole[0]) < 16:
-            return SignalOscillation(name, 0.0, 0.0, math.nan, 0.0, floor, 0, 0, 0.0, "none")
+            return SignalOscillation(name, 0.0, 0.0, math.nan, 0.0, floor, 0, 0, 0.0, "none",
+                                     judged)
         dt = (t[-1] - t[0]) / max(len(whole[0]) - 1, 1)
         hp = highpass(whole[0], dt, c.highpass_hz)
         segs = [hp[len(hp) // 5:]]
@@ -225,7 +235,8 @@ def analyse_oscillation(name: str, t_s: Array, x: Array,
     if amp_late > threshold and n_late >= 1:
         if amp_late > c.growth_ratio * amp_early and n_rev >= c.min_reversals_growing:
             state = "growing"
-        elif amp_late >= c.decay_ratio * amp_early and n_rev >= c.min_reversals:
+        elif (amp_late >= c.decay_ratio * amp_early and n_rev >= c.min_reversals
+              and judged != "growth only"):
             state = "sustained"
     return SignalOscillation(name, amp_late, amp_early, freq if amp_late > 0 else math.nan,
-                             noise, threshold, n_rev, n_late, hf, state)
+                             noise, threshold, n_rev, n_late, hf, state, judged)

@@ -27,6 +27,12 @@ Definitions
     Finger angle against the set-point delayed by the forward path; displayed force against
     the force the hand's pressures should display, delayed by the backward path.
 
+``tracking_hold_rad``
+    The same tracking error, RMS over the late half of every analysis segment (the steady
+    part of each hold: a round trip after the ramp the operator is still answering the
+    rendered contact, which reaches the hand one forward delay later): how far the hand's
+    closure sits from what the operator commands in a steady grasp (nan without segments).
+
 ``felt_true_force_ratio``
     In the steady grasp (the analysis segments): mean displayed force over the mean force the
     force-feedback map gives for the pressure the hand really measures (delayed by the
@@ -53,7 +59,7 @@ Array = NDArray[np.float64]
 
 __all__ = ["RunSignals", "StabilityCriteria", "RunMetrics", "classify_run", "oscillations",
            "analysis_segments", "energy_generated_j", "delayed", "rms_error",
-           "felt_true_force_ratio", "highpass"]
+           "felt_true_force_ratio", "tracking_hold_rad", "highpass"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +96,9 @@ class RunSignals:
     audit_margin_j: Array | None = None
     audit_throughput_j: float = 0.0
     ledger_audit_gap_j: tuple[float, float] = (math.nan, math.nan)  # (operator, environment)
+    #: the operator repeats a script whose holds are all shorter than the loop's round trip:
+    #: no hold can be judged, only a growing oscillation (:func:`analyse_oscillation`)
+    growth_only: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -129,6 +138,12 @@ class RunMetrics:
     ledger_audit_gap_environment_j: float = math.nan
     felt_true_force_ratio: float = math.nan
     oscillations: tuple[SignalOscillation, ...] = ()
+    tracking_hold_rad: float = math.nan
+
+    @property
+    def judged(self) -> str:
+        """What the stability verdict examined: "holds", "whole run" or "growth only"."""
+        return self.oscillations[0].judged if self.oscillations else "holds"
 
 
 def delayed(t_s: Array, x: Array, delay_s: float) -> Array:
@@ -169,8 +184,23 @@ def oscillations(s: RunSignals, c: StabilityCriteria = StabilityCriteria()
     sigs.append(("displayed_force_n", np.asarray(s.force_displayed_n, float), c.force_floor_n))
     if s.trigger_m is not None:
         sigs.append(("trigger_m", np.asarray(s.trigger_m, float), c.trigger_floor_m))
-    return tuple(analyse_oscillation(n, s.t_s, x, segs, floor, c.oscillation)
+    return tuple(analyse_oscillation(n, s.t_s, x, segs, floor, c.oscillation, s.growth_only)
                  for n, x, floor in sigs)
+
+
+def tracking_hold_rad(s: RunSignals) -> float:
+    """RMS of finger minus delayed set-point in the late halves of the analysis segments
+    (nan: none)."""
+    t = np.asarray(s.t_s, float)
+    m = np.zeros(len(t), bool)
+    for a, b in analysis_segments(s):
+        b = min(b, float(t[-1]) + 1e-9) if t.size else b
+        m |= (t >= 0.5 * (a + b)) & (t < b)
+    if not m.any():
+        return math.nan
+    err = np.asarray(s.finger_rad, float) - delayed(t, np.asarray(s.setpoint_rad, float),
+                                                    s.forward_delay_s)
+    return float(np.sqrt(np.mean(err[m] ** 2)))
 
 
 def felt_true_force_ratio(s: RunSignals, c: StabilityCriteria = StabilityCriteria()) -> float:
@@ -246,4 +276,5 @@ def classify_run(s: RunSignals, c: StabilityCriteria = StabilityCriteria()) -> R
         ledger_audit_gap_environment_j=float(s.ledger_audit_gap_j[1]),
         felt_true_force_ratio=felt_true_force_ratio(s, c) if finite else math.nan,
         oscillations=osc,
+        tracking_hold_rad=tracking_hold_rad(s) if finite else math.nan,
     )

@@ -72,6 +72,7 @@ class SweepRun:
             "jitter_s": self.point.jitter_s, "loss": self.point.loss, "stable": m.stable,
             "passive": m.passive, "energy_generated_j": m.energy_generated_j,
             "tracking_rms_rad": m.tracking_rms_rad, "force_rms_n": m.force_rms_n,
+            "tracking_hold_rad": m.tracking_hold_rad,
             "tank_min_j": m.tank_min_j, "operator": self.point.operator,
             "object": self.point.object, "passive_audit": m.passive_audit,
             "audit_energy_generated_j": m.audit_energy_generated_j,
@@ -88,6 +89,7 @@ class SweepRun:
             "limited_fraction": m.limited_fraction, "dropped_messages": m.dropped_messages,
             "oscillation_index": m.oscillation_index, "growth_ratio": m.growth_ratio,
             "hf_power_fraction": m.hf_power_fraction, "reason": m.reason,
+            "stability_judged": m.judged,
             "seed": self.point.seed, "refine": self.refine, "wall_s": self.wall_s,
             **dict(self.extra),
         }

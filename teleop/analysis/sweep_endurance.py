@@ -103,6 +103,9 @@ def run_endurance(cfg: TeleopConfig, controllers: Sequence[str], runner: Enduran
                        time.perf_counter() - t0, (note,))
 
 
+_GROWTH_ONLY = " (growth only: every hold shorter than the round trip)"
+
+
 def format_endurance(result: SweepResult, every: int = 20) -> str:
     """Per run: the summary line and a per-grasp table (every ``every``-th grasp)."""
     from teleop.analysis.grasps import GraspStats
@@ -122,7 +125,8 @@ def format_endurance(result: SweepResult, every: int = 20) -> str:
             f"{ex.get('endurance_min_grasp_ratio', float('nan')):.2f}, felt "
             f"{ex.get('endurance_min_felt_ratio', float('nan')):.2f}, closure "
             f"{ex.get('endurance_min_closure_ratio', float('nan')):.2f}; "
-            f"{'stable' if m.stable else 'UNSTABLE'}, "
+            f"{'stable' if m.stable else 'UNSTABLE'}"
+            f"{_GROWTH_ONLY if m.judged == 'growth only' else ''}, "
             f"{'passive' if m.passive else 'NOT passive'} (audit), "
             f"tank min {m.tank_min_j:.3g} J")
         lines.append(format_grasps(gs, every))

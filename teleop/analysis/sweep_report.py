@@ -40,7 +40,8 @@ def result_from_json(doc: dict[str, Any]) -> SweepResult:
 def format_table(result: SweepResult) -> str:
     """The results as a fixed-width text table, then the largest stable delays."""
     head = (f"{'controller':<10} {'delay_s':>8} {'loss':>5} {'stable':>6} {'passive':>7} "
-            f"{'audit_J':>8} {'ledger':>6} {'E_gen_J':>8} {'track_rad':>9} {'force_N':>8} "
+            f"{'audit_J':>8} {'ledger':>6} {'E_gen_J':>8} {'track_rad':>9} {'hold_rad':>8} "
+            f"{'force_N':>8} "
             f"{'felt/true':>9} {'tank_min_J':>10} {'limited':>8} {'osc':>6}  oscillation")
     lines = [head, "-" * len(head)]
     for r in result.runs:
@@ -53,7 +54,8 @@ def format_table(result: SweepResult) -> str:
             f"{p.controller:<10} {p.delay_s:8.4f} {p.loss:5.2f} {'yes' if m.stable else 'NO':>6} "
             f"{'yes' if m.passive else 'NO':>7} {m.audit_energy_generated_j:8.3g} "
             f"{'yes' if m.passive_ledger else 'NO':>6} {m.energy_generated_j:8.3g} "
-            f"{m.tracking_rms_rad:9.3f} {m.force_rms_n:8.3f} {m.felt_true_force_ratio:9.2f} "
+            f"{m.tracking_rms_rad:9.3f} {m.tracking_hold_rad:8.3f} {m.force_rms_n:8.3f} "
+            f"{m.felt_true_force_ratio:9.2f} "
             f"{tank} {m.limited_fraction:8.1%} {m.oscillation_index:6.2f}  {osc}"
             + ("  (bisection)" if r.refine else ""))
     pred = dict(result.predicted_max_stable_delay_s)

@@ -119,6 +119,10 @@ def hold_segments_s(cfg: TeleopConfig, t_end_s: float) -> tuple[tuple[float, flo
     return tuple(out)
 
 
+def _repeats(cfg: TeleopConfig) -> bool:
+    return cfg.master.backend == "virtual" and bool(cfg.master.virtual.repeat)
+
+
 def _finger(cfg: TeleopConfig) -> int:
     en = tuple(cfg.controller.transparency.finger_enable)
     return next((i for i, e in enumerate(en[:3]) if e), 0)
@@ -145,6 +149,7 @@ def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
     margin = np.asarray(cols["audit_margin_j"], float) if "audit_margin_j" in cols else None
     gap = tuple(np.asarray(cols.get("ledger_audit_gap_j", [np.nan, np.nan]), float))
     t = np.asarray(cols["t_s"], float)
+    segs = hold_segments_s(cfg, float(t[-1]) if t.size else 0.0)
     tr = cfg.controller.transparency
     fwd, back = path_delays_s(cfg)
     tanks = [fill_nan(np.asarray(cols[k], float)) for k in
@@ -177,7 +182,8 @@ def signals_from_columns(cols: Mapping[str, Array], cfg: TeleopConfig,
         settle_s=settle_time_s(cfg),
         fingers_rad=motors,
         trigger_m=trigger,
-        segments_s=hold_segments_s(cfg, float(t[-1]) if t.size else 0.0),
+        segments_s=segs,
+        growth_only=_repeats(cfg) and not segs,
         audit_margin_j=margin,
         audit_throughput_j=float(np.asarray(cols.get("audit_throughput_j", [0.0]))[0]),
         ledger_audit_gap_j=(float(gap[0]), float(gap[1])),

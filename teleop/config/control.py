@@ -132,6 +132,10 @@ class TransparencyConfig:
     preshape_rad: float = param(0.0, "preshape joint set-point", unit="rad", lo=0.0, hi=1.75)
     force_per_pressure_n: float = param(0.02, "trigger force per unit of the combined maximum "
                                         "pressure", unit="N", lo=0.0, hi=10.0)
+    pressure_deadband: float = param(10.0, "tactile noise not displayed: combined pressures "
+                                     "at or below this give no force, rising to the full "
+                                     "map at twice it (continuous; 2 x 10 = the stock driver's "
+                                     "contact threshold)", lo=0.0, hi=1e4)
     force_combine: str = param("max", "how per-finger maximum pressures combine",
                                choices=("max", "mean", "sum"))
     force_filter_hz: float = param(20.0, "low-pass cut-off of the displayed force", unit="Hz",

@@ -71,6 +71,7 @@ class ControlParams:
     force_per_pressure_n: float
     force_combine: str
     force_filter_hz: float
+    pressure_deadband: float = 0.0
     # delay-aware force gain (two-layer; None = off)
     delay_adapt: DelayAdaptParams | None = None
     # two-layer hand: servo work on a finger touching nothing goes back to the tank
@@ -102,6 +103,7 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
         closed_angle_rad=tr.closed_angle_rad, map_exponent=tr.map_exponent,
         preshape_rad=tr.preshape_rad, force_per_pressure_n=tr.force_per_pressure_n,
         force_combine=tr.force_combine, force_filter_hz=tr.force_filter_hz,
+        pressure_deadband=tr.pressure_deadband,
         delay_adapt=delay_adapt_params(cfg) if cfg.kind == "two-layer" else None,
         free_motion_refund=pm.free_motion_refund, hand_port=pm.hand_port,
         tendon_stiffness_nm_per_rad=pm.tendon_stiffness_nm_per_rad,

@@ -51,8 +51,20 @@ def max_pressures(fingers: tuple[FingerState, ...], p: ControlParams) -> Triple:
 
 
 def combined_force_n(max_p: Triple, p: ControlParams) -> float:
-    """Unfiltered displayed force from the per-finger maxima."""
-    return max(combine(max_p, p), 0.0) * p.force_per_pressure_n
+    """Unfiltered displayed force from the per-finger maxima, tactile noise removed
+    (:func:`deadband`)."""
+    return deadband(max(combine(max_p, p), 0.0), p.pressure_deadband) * p.force_per_pressure_n
+
+
+def deadband(pressure: float, band: float) -> float:
+    """``pressure`` with the sensor's noise band removed: 0 up to ``band``, the pressure itself
+    from ``2 band`` on, a straight line between (continuous, no step the operator could feel).
+
+    Free-air tactile noise (the peak of 27 noisy cells, a few units) would otherwise reach the
+    trigger as a buzzing force the operator's hand resonates with."""
+    if pressure >= 2.0 * band:
+        return pressure
+    return 2.0 * (pressure - band) if pressure > band else 0.0
 
 
 def combine(per_finger: Triple, p: ControlParams) -> float:

@@ -177,6 +177,33 @@ def test_without_segments_falls_back_to_highpass() -> None:
     assert analyse_oscillation("x", T, grasp(T), (), 1e-3).state == "none"
 
 
+def repeated_grasps(t: np.ndarray, period_s: float = 4.5) -> np.ndarray:
+    """A repeating script: close over 1 s, hold 2 s, open over 1 s, wait 0.5 s."""
+    tt = np.fmod(t, period_s)
+    up = np.clip(tt - 0.5, 0.0, 1.0)
+    down = np.clip(tt - 3.5, 0.0, 1.0)
+    return 0.5 * (0.5 - 0.5 * np.cos(np.pi * up)) * (0.5 + 0.5 * np.cos(np.pi * down))
+
+
+def test_growth_only_when_no_hold_can_be_judged() -> None:
+    tl = np.arange(0.0, 40.0, DT)
+    g = repeated_grasps(tl)
+    # the whole-run fallback reads the operator's own grasps as a sustained oscillation ...
+    assert analyse_oscillation("x", tl, g, (), 1e-3).state == "sustained"
+    # ... growth-only does not, and says what it judged
+    o = analyse_oscillation("x", tl, g, (), 1e-3, growth_only=True)
+    assert o.state == "none" and o.judged == "growth only"
+    # a growing cycle on top of the grasps is still caught
+    grow = g + 0.002 * np.exp(tl / 8.0) * np.sin(2 * np.pi * 3.0 * tl)
+    o = analyse_oscillation("x", tl, grow, (), 1e-3, growth_only=True)
+    assert o.state == "growing" and o.frequency_hz == pytest.approx(3.0, rel=0.1)
+    # with segments, growth_only changes nothing: holds are judged as ever
+    segs = tuple((k * 4.5 + 1.6, k * 4.5 + 3.5) for k in range(8))
+    cyc = g + 0.05 * np.sin(2 * np.pi * 6.0 * tl)
+    o = analyse_oscillation("x", tl, cyc, segs, 1e-3, growth_only=True)
+    assert o.state == "sustained" and o.judged == "holds"
+
+
 def test_nan_is_unstable() -> None:
     x = grasp(T)
     x[3000] = math.nan
@@ -235,3 +262,15 @@ def test_tracking_and_force_errors() -> None:
     m = classify_run(run(cmd, finger_rad=hand, forward_delay_s=0.25,
                          force=np.full_like(T, 2.1), force_measured_n=np.full_like(T, 2.0)))
     assert m.tracking_rms_rad < 1e-9 and m.force_rms_n == pytest.approx(0.1)
+
+
+def test_tracking_in_the_hold_is_judged_on_its_steady_half() -> None:
+    from teleop.analysis.stability import tracking_hold_rad
+
+    sp = grasp(T)
+    # the finger overshoots early in the hold, then sits 0.05 rad short of the set-point
+    finger = sp - 0.05 * (T > 1.5) + 0.3 * np.exp(-(T - SETTLE) / 0.3) * (T > SETTLE)
+    s = run(finger, setpoint_rad=sp)
+    assert tracking_hold_rad(s) == pytest.approx(0.05, abs=0.002)
+    assert classify_run(s).tracking_hold_rad == pytest.approx(0.05, abs=0.002)
+    assert math.isnan(tracking_hold_rad(run(finger, setpoint_rad=sp, settle_s=0.0)))

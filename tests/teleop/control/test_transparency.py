@@ -74,3 +74,19 @@ def test_force_is_filtered_and_clipped() -> None:
     assert y == pytest.approx(1 - math.exp(-1), rel=1e-9)
     st, f, mp, _ = transparency_force(TransparencyState(), P, None, 1e-3)
     assert f == 0.0 and mp == (0.0, 0.0, 0.0)
+
+
+def test_tactile_noise_band_is_not_displayed_and_the_map_stays_continuous() -> None:
+    band = P.pressure_deadband
+    assert band > 0
+    assert combined_force_n((band, 0.5 * band, 0.0), P) == 0.0  # free-air noise: no force
+    # continuous through the band's edges, the plain map from twice the band on
+    assert combined_force_n((band + 1e-9, 0, 0), P) == pytest.approx(0.0, abs=1e-9)
+    assert combined_force_n((2 * band, 0, 0), P) == pytest.approx(2 * band * 0.02)
+    assert combined_force_n((2 * band - 1e-9, 0, 0), P) == pytest.approx(2 * band * 0.02)
+    assert combined_force_n((600, 0, 0), P) == pytest.approx(600 * 0.02)
+    grid = [combined_force_n((0.01 * k, 0, 0), P) for k in range(4000)]
+    assert all(b >= a for a, b in zip(grid, grid[1:], strict=False))  # monotone
+    assert max(abs(b - a) for a, b in zip(grid, grid[1:], strict=False)) < 0.001
+    off = replace(P, pressure_deadband=0.0)
+    assert combined_force_n((3.0, 0, 0), off) == pytest.approx(0.06)
