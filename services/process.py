@@ -81,6 +81,21 @@ def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any) -> Any:
     return HandService(cfg, bus, backend)
 
 
+def _hand_meta(role: str, cfg: TeleopConfig) -> tuple[tuple[str, str], ...]:
+    """What a hand recording must say about its driver for ``teleop diagnose --model finger``
+    to rebuild the motor commands: the backend and, for the dynamixel driver, its moving speed
+    and overload back-off (the targets it writes differ from the set-points while overloaded)."""
+    if role != "hand":
+        return ()
+    out: tuple[tuple[str, str], ...] = (("hand_backend", cfg.hand.backend),)
+    if cfg.hand.backend == "dynamixel":
+        d = cfg.hand.dynamixel
+        out += (("speed_rad_s", f"{d.speed_rad_s:g}"),
+                ("overload_finger_units", f"{d.overload_finger_units:g}"),
+                ("load_filter", f"{d.load_filter:g}"))
+    return out
+
+
 def _dashboard_stream(opts: ServiceOptions) -> Any:
     if opts.dashboard == "off":
         return None
@@ -182,7 +197,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         importlib.import_module(f"services.{role}_service")  # the shell's imports, now
         record = Path(opts.record_dir) / f"{role}.csv" if opts.record_dir else None
         meta = (("role", role), ("controller", cfg.controller.kind),
-                ("session", cfg.session.name), ("rate_hz", f"{rate:g}"))
+                ("session", cfg.session.name), ("rate_hz", f"{rate:g}"), *_hand_meta(role, cfg))
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
                               cfg.dashboard.rate_hz, meta)
         bus = ZenohBus.from_config(role, cfg, clock=clock)

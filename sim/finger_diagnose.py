@@ -27,10 +27,10 @@ from sim.finger_dynamic import (
 from sim.finger_dynamic import PARAMS as PARAMS_DYN
 from sim.finger_hand_rec import hand_finger_data, is_hand_recording
 from sim.finger_model_file import write_model
-from sim.finger_select import DynamicDiagnosis, diagnose_dynamic, print_progress
 from sim.params import FingerParams, default_finger_params
-from teleop.analysis.ambiguity import ambiguous
-from teleop.analysis.candidates import explanation
+from teleop.diagnose.ambiguity import ambiguous
+from teleop.diagnose.candidates import explanation
+from teleop.diagnose.select_sim import DynamicDiagnosis, diagnose_dynamic, print_progress
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording
@@ -156,7 +156,8 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
         if finger is None:
             raise RecordingError(f"{rec.source}: a hand recording holds three fingers; name one "
                                  "with --finger 1|2|3")
-        data = hand_finger_data(rec, int(finger), args.output_col or "motor_angle_rad")
+        data = hand_finger_data(rec, int(finger), args.output_col or "motor_angle_rad",
+                                split_gaps=bool(getattr(args, "split_gaps", False)))
         what = (f"teleop diagnose {rec.source} --model finger --finger {finger} (hand "
                 f"recording, set-points from 'setpoint_rad_f{finger}')")
     else:
@@ -184,11 +185,12 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
 
 def diagnose_finger(args: argparse.Namespace) -> int:
     """``teleop diagnose REC --model finger``: static weight recordings against the finger."""
-    from teleop.analysis.generic import diagnose_model
     from teleop.commands.common import info, write_json
+    from teleop.diagnose.generic import diagnose_model
     from teleop.recording import read_recording
 
-    recs = [read_recording(p, allow_nan=True) for p in args.recordings]
+    recs = [read_recording(p, allow_nan=True).skip(getattr(args, "skip", 0.0))
+            for p in args.recordings]
     if len(recs) == 1 and (recs[0].meta_value("experiment") in DYNAMIC_EXPERIMENTS
                            or is_hand_recording(recs[0])):
         return diagnose_finger_dynamic(args, recs[0])

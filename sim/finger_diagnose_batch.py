@@ -19,8 +19,8 @@ import numpy as np
 from sim.experiments import ExperimentSpec, run_experiment
 from sim.finger import ContactObject
 from sim.finger_dynamic import FingerDynamicModel, dynamic_data
-from sim.finger_select import diagnose_dynamic
 from sim.params import default_finger_params
+from teleop.diagnose.select_sim import diagnose_dynamic
 from teleop.effects import EffectSet
 
 RANGES: dict[str, tuple[float, float]] = {

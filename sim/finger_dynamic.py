@@ -32,6 +32,7 @@ from sim.finger import (
     initial_finger_state,
 )
 from sim.params import JOINT_RATIO, FingerParams
+from teleop.diagnose.residual import noise_std
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording
@@ -107,7 +108,12 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
                        np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
 
 
-SETTLE_S = 0.4
+SETTLE_S = 1.0  # rest after a restart: the free finger crosses its travel at the driver's speed
+
+
+def settle_s(eff: EffectSet) -> float:
+    """How long a restarting segment settles: :data:`SETTLE_S` plus any dead time."""
+    return SETTLE_S + eff.dead_time
 
 
 def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObject,
@@ -115,7 +121,7 @@ def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObjec
     """The free finger at rest under a position goal (a segment restarting after contact)."""
     state = initial_finger_state(p)
     cmd = MotorCommand("position", goal_rad=goal_rad)
-    for _ in range(int(SETTLE_S / dt_s)):
+    for _ in range(int(settle_s(eff) / dt_s)):
         state = finger_step(state, cmd, p, obj, eff, dt_s)
     return state
 
@@ -128,7 +134,7 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
     if engine(engine_name).name == "compiled":
         from sim.compiled_dynamic import simulate_compiled
 
-        return simulate_compiled(p, eff, data, dt_s, SETTLE_S)
+        return simulate_compiled(p, eff, data, dt_s, settle_s(eff))
     obj = ContactObject(kind="none")
     state = initial_finger_state(p)
     t = data.t_s
@@ -174,6 +180,23 @@ class FingerDynamicModel:
     tolerance: float = 0.2
     dt_s: float = 2e-3
     engine_name: str = DEFAULT_ENGINE
+
+    def candidates(self) -> dict[str, tuple[tuple[float, ...], tuple[float, float]]]:
+        """Effects the selection tries: (screening grid, bounds)."""
+        return CANDIDATES
+
+    def nominal_start(self) -> tuple[float, ...]:
+        """The calibrated values of the refined parameters."""
+        return tuple(float(getattr(self.base, n)) for n in PARAMS)
+
+    def floor(self) -> tuple[float, float]:
+        """(floor, physics-step error), rms: the noise and the coarse step's own error on the
+        calibrated finger."""
+        nom0 = self.nominal_start()
+        d = replace(self, dt_s=self.data.physics_dt_s).run(nom0, ()) - self.run(nom0, ())
+        d = d[np.isfinite(d)]
+        step_err = float(np.sqrt(np.mean(d ** 2))) if len(d) else 0.0
+        return math.hypot(noise_std(self.data.y[self.data.keep]), step_err), step_err
 
     def params(self, theta: Array | tuple[float, ...]) -> FingerParams:
         """Finger parameters with the refined ones set."""

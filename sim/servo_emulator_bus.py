@@ -104,11 +104,12 @@ class ServoBusEmulator:
         self._stale = True  # registers (temperature, hardware error status) follow
 
     # ---- physics
-    def step(self, dt_s: float) -> None:
-        """Advance the physics by ``dt_s`` under the present control tables."""
+    def step(self, dt_s: float, steps: int = 1) -> None:
+        """Advance the physics by ``steps`` steps of ``dt_s`` under the present control
+        tables."""
         if self._drives is None:
             self._drives = [s.drive() for s in self.servos]
-        self.physics.step(self._drives, dt_s)
+        self.physics.step(self._drives, dt_s, steps)
         self._stale = True
 
     def _sync_senses(self) -> None:

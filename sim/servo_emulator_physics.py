@@ -53,8 +53,9 @@ class ServoPhysics(Protocol):
 
     label: str
 
-    def step(self, drives: Sequence[ServoDrive], dt_s: float) -> None:
-        """Advance by ``dt_s`` under ``drives`` (one per servo, in bus order)."""
+    def step(self, drives: Sequence[ServoDrive], dt_s: float, steps: int = 1) -> None:
+        """Advance by ``steps`` steps of ``dt_s`` under ``drives`` (one per servo, in bus
+        order)."""
 
     def sense(self) -> tuple[ServoSense, ...]:
         """Current measurements, one per servo."""
@@ -128,9 +129,10 @@ class SimpleServoPhysics:
         self.servos = [SimpleServo(h, inv, contact_rad if i < 3 else math.inf)
                        for i, (h, inv) in enumerate(zip(homes_rad, inversions, strict=True))]
 
-    def step(self, drives: Sequence[ServoDrive], dt_s: float) -> None:
-        for servo, drive in zip(self.servos, drives, strict=True):
-            servo.step(drive, dt_s)
+    def step(self, drives: Sequence[ServoDrive], dt_s: float, steps: int = 1) -> None:
+        for _ in range(steps):
+            for servo, drive in zip(self.servos, drives, strict=True):
+                servo.step(drive, dt_s)
 
     def sense(self) -> tuple[ServoSense, ...]:
         return tuple(s.sense() for s in self.servos)
@@ -142,15 +144,21 @@ class FingerServoPhysics:
     label = "finger model (sim.finger)"
 
     def __init__(self, homes_rad: Sequence[float], inversions: Sequence[int],
-                 object_cfg: Any = None) -> None:
+                 object_cfg: Any = None, effects: Any = None,
+                 engine_name: str = "compiled") -> None:
         from sim import finger as fm  # the physics helper's module
+        from sim.engine import engine
         from teleop.effects import EffectSet
 
         self._fm = fm
+        self._engine = engine(engine_name)
         self.params = fm.default_finger_params()
         self.obj = (fm.contact_object_from_config(object_cfg) if object_cfg is not None
                     else fm.ContactObject(kind="none"))
-        self.effects = EffectSet()
+        self.effects = effects if effects is not None else EffectSet()
+        if self.effects.active():
+            self.label += " with " + ", ".join(f"{n}={getattr(self.effects, n):g}"
+                                               for n in self.effects.active())
         n = len(homes_rad)
         self.n_fingers = min(3, n)
         self.homes = list(homes_rad)
@@ -159,8 +167,11 @@ class FingerServoPhysics:
         self.extra = [SimpleServo(homes_rad[i], inversions[i]) for i in range(self.n_fingers, n)]
         self._outs = [fm.finger_outputs(s, self.params, self.obj, self.effects)
                       for s in self.states]
+        # compile (or load from numba's cache) now, not on the first step while serving
+        self._engine.run_finger(self.states[0], [fm.MotorCommand()], [1e-3], self.params,
+                                self.obj, self.effects, [False, False])
 
-    def step(self, drives: Sequence[ServoDrive], dt_s: float) -> None:
+    def step(self, drives: Sequence[ServoDrive], dt_s: float, steps: int = 1) -> None:
         fm = self._fm
         for i in range(self.n_fingers):
             d = drives[i]
@@ -168,11 +179,15 @@ class FingerServoPhysics:
                                   goal_rad=self.inv[i] * (d.goal_rad - self.homes[i]),
                                   speed_rad_s=d.speed_rad_s, force_units=0.0,
                                   torque_limit=d.torque_limit if d.torque_on else 0.0)
-            self.states[i] = fm.finger_step(self.states[i], cmd, self.params, self.obj,
-                                            self.effects, dt_s)
+            # one engine call for the batch (the compiled engine: ~8x less CPU than stepping
+            # in Python, which a loaded machine could not keep up with in real time)
+            self.states[i], _ = self._engine.run_finger(
+                self.states[i], [cmd] * steps, [dt_s] * steps, self.params, self.obj,
+                self.effects, [False] * (steps + 1))
         self._outs = []  # computed when next sensed (finger_outputs is as costly as a step)
-        for servo, d in zip(self.extra, drives[self.n_fingers:], strict=True):
-            servo.step(d, dt_s)
+        for _ in range(steps):
+            for servo, d in zip(self.extra, drives[self.n_fingers:], strict=True):
+                servo.step(d, dt_s)
 
     def _outputs(self) -> list[Any]:
         if not self._outs:
@@ -193,12 +208,17 @@ class FingerServoPhysics:
 
 
 def build_physics(homes_rad: Sequence[float], inversions: Sequence[int], object_cfg: Any = None,
-                  *, prefer_finger: bool = True) -> ServoPhysics:
-    """The finger model when ``sim.finger`` is importable, else the labelled fallback."""
+                  *, prefer_finger: bool = True, effects: Any = None,
+                  engine_name: str = "compiled") -> ServoPhysics:
+    """The finger model when ``sim.finger`` is importable, else the labelled fallback.
+
+    ``effects`` (a :class:`teleop.effects.EffectSet`) are physical effects of the emulated
+    fingers (e.g. extra Coulomb friction, a dead time); the fallback has none.
+    """
     reason = ""
     if prefer_finger:
         try:
-            return FingerServoPhysics(homes_rad, inversions, object_cfg)
+            return FingerServoPhysics(homes_rad, inversions, object_cfg, effects, engine_name)
         except (ImportError, AttributeError, TypeError) as exc:  # model absent or API mismatch
             reason = f"{type(exc).__name__}: {exc}"
     fallback = SimpleServoPhysics(homes_rad, inversions)

@@ -38,7 +38,8 @@ def make_bus_emulator(protocol: int = 1, ids: Sequence[int] = (1, 2, 3, 4),
                       inversions: Sequence[int] = (1, -1, 1, -1),
                       homes_counts: Sequence[int] | None = None, object_cfg: Any = None,
                       faults: FaultConfig = FaultConfig(), return_delay_us: int = 0,
-                      physics: str = "finger") -> ServoBusEmulator:
+                      physics: str = "finger", effects: Any = None,
+                      engine_name: str = "compiled") -> ServoBusEmulator:
     """A bus of emulated MX-28s with the finger model (or the fallback) as physics."""
     n = len(ids)
     inv = tuple(inversions[:n]) + (1,) * max(0, n - len(inversions))
@@ -47,7 +48,8 @@ def make_bus_emulator(protocol: int = 1, ids: Sequence[int] = (1, 2, 3, 4),
         raise ValueError(f"need {n} home positions, got {len(homes)}")
     scale = T.P1_RAD_PER_COUNT if protocol == 1 else T.P2_RAD_PER_COUNT
     model = build_physics([h * scale for h in homes], inv, object_cfg,
-                          prefer_finger=physics == "finger")
+                          prefer_finger=physics == "finger", effects=effects,
+                          engine_name=engine_name)
     return ServoBusEmulator(protocol, ids, model, homes, inv, faults, return_delay_us)
 
 
@@ -86,11 +88,10 @@ class PtyServoEmulator:
         if lag > MAX_CATCH_UP_S:
             self.dropped_time_s += lag - MAX_CATCH_UP_S
             self._t_phys = now - MAX_CATCH_UP_S
-        for _ in range(max_steps):
-            if self._t_phys + self.dt_s > now:
-                return
-            self.bus.step(self.dt_s)
-            self._t_phys += self.dt_s
+        n = min(max_steps, int((now - self._t_phys) / self.dt_s + 1e-9))
+        if n > 0:  # the control tables only change between batches (packets come first)
+            self.bus.step(self.dt_s, n)
+            self._t_phys += n * self.dt_s
 
     def serve(self, duration_s: float | None = None) -> None:
         """Run until :meth:`stop`, :meth:`vanish` or ``duration_s`` has passed."""

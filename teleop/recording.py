@@ -63,6 +63,15 @@ class Recording:
                 return v
         return default
 
+    def skip(self, skip_s: float, flag: str = "--skip") -> Recording:
+        """This recording without its first ``skip_s`` seconds (e.g. a start-up transient)."""
+        if skip_s <= 0:
+            return self
+        keep = self.t_s >= self.t_s[0] + skip_s
+        if not keep.any():
+            raise RecordingError(f"{self.source}: {flag} {skip_s:g} s leaves no data")
+        return Recording(self.columns, self.data[keep], self.meta, source=self.source)
+
     @classmethod
     def from_columns(cls, columns: Mapping[str, Sequence[float] | NDArray[np.float64]],
                      meta: Iterable[tuple[str, str]] = ()) -> Recording:

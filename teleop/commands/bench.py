@@ -26,7 +26,7 @@ BENCHES: dict[str, str] = {
     "lockstep": "services.bench_lockstep:bench_lockstep",
     "servo": "sim.servo_emulator_bench:bench_servo",
     "takktile": "sim.hand_emulator_bench:bench_takktile",
-    "diagnose": "teleop.analysis.bench:bench_diagnose",
+    "diagnose": "teleop.diagnose.bench:bench_diagnose",
 }
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from teleop.commands.common import (
     add_json_option,
@@ -21,9 +20,6 @@ from teleop.commands.common import (
     nonneg_float,
     write_json,
 )
-
-if TYPE_CHECKING:
-    from teleop.recording import Recording
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -39,6 +35,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--finger", type=int, default=None, metavar="N",
                    help="--model finger on a 'teleop up --record' hand recording: which finger "
                    "(1-3); its set-points are the commands, contact rows are excluded")
+    p.add_argument("--split-gaps", action="store_true",
+                   help="--model finger --finger N: a gap in the hand recording's time (a "
+                   "stalled tick, e.g. bus retries) restarts the simulation instead of being "
+                   "refused")
     p.add_argument("--nominal", default="inertia,viscous,stiffness", metavar="TERMS",
                    help="axis terms the nominal model has: inertia, viscous, stiffness, gravity, "
                    "coulomb, offset; TERM=VALUE gives a nominal value refined within "
@@ -77,25 +77,12 @@ def _default_output(columns: tuple[str, ...], input_col: str | None) -> str:
     raise UserInputError("--output not given and no column ending in _rad or _m to default to")
 
 
-def _skip(rec: Recording, skip_s: float) -> Recording:
-    """``rec`` without its first ``skip_s`` seconds."""
-    from teleop.errors import RecordingError
-    from teleop.recording import Recording
-
-    if skip_s <= 0:
-        return rec
-    keep = rec.t_s >= rec.t_s[0] + skip_s
-    if not keep.any():
-        raise RecordingError(f"{rec.source}: --skip {skip_s} s leaves no data")
-    return Recording(rec.columns, rec.data[keep], rec.meta, source=rec.source)
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the diagnosis and print/write the results."""
-    from teleop.analysis.diagnose import DiagnoseOptions, diagnose
-    from teleop.analysis.fit import NUMERIC_FAILURES
-    from teleop.analysis.model import parse_nominal
-    from teleop.analysis.report import to_json, to_text
+    from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
+    from teleop.diagnose.fit import NUMERIC_FAILURES
+    from teleop.diagnose.model import parse_nominal
+    from teleop.diagnose.report import to_json, to_text
     from teleop.errors import RecordingError, UserInputError
     from teleop.recording import read_recording
 
@@ -112,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
                                  "(sim/finger_diagnose.py) is not available in this "
                                  "build") from None
         return int(diagnose_finger(args))
-    recs = [_skip(read_recording(p, allow_nan=True), args.skip) for p in args.recordings]
+    recs = [read_recording(p, allow_nan=True).skip(args.skip) for p in args.recordings]
     output = args.output_col or _default_output(recs[0].columns, args.input_col)
     for r in recs:
         r.column(output)
@@ -120,10 +107,12 @@ def run(args: argparse.Namespace) -> int:
             r.column(args.input_col)
     nominal = parse_nominal(args.nominal, args.tolerance)
     opts = DiagnoseOptions(nominal, args.input_col, output, analysis=args.analysis)
-    val = (_skip(read_recording(args.validate, allow_nan=True), args.skip) if args.validate
+    val = (read_recording(args.validate, allow_nan=True).skip(args.skip) if args.validate
            else None)
     try:
         d = diagnose(recs, opts, val)
+    except RecordingError:  # the recording's own fault, already said in one line
+        raise
     except NUMERIC_FAILURES as e:  # candidates that fail are disqualified; this is the nominal
         raise RecordingError(f"{args.recordings[0]}: the nominal {args.model} model cannot be "
                              f"fitted to this recording ({type(e).__name__}: {e}); check "
@@ -132,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     info(args, to_text(d, src))
     write_json(args.json_path, to_json(d, args.model))
     if args.plot is not None:
-        from teleop.analysis.plot import plot_diagnosis
+        from teleop.diagnose.plot import plot_diagnosis
 
         plot_diagnosis(d, args.plot, title=f"teleop diagnose {src}"[:100])
         info(args, f"plot: {args.plot}")

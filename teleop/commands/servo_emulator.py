@@ -23,6 +23,8 @@ from teleop.commands.common import (
 )
 from teleop.errors import UserInputError
 
+REALTIME_PRIORITY = 30  # above the services' loops (10, 20): hardware is not preempted
+
 
 def _fraction(text: str) -> float:
     value = nonneg_float(text)
@@ -55,6 +57,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="raw position (counts) of each servo with its finger open (default 0)")
     p.add_argument("--physics", choices=("finger", "simple"), default="finger",
                    help="finger model (default) or the simple fallback servo model")
+    p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
+                   help="a physical effect of the emulated fingers, e.g. coulomb_friction=2 "
+                   "(N of tendon force) or dead_time=0.1 (s); repeatable; --physics finger only")
+    p.add_argument("--no-realtime", dest="realtime", action="store_false",
+                   help="do not serve under SCHED_FIFO (default: try, above the services' 1 kHz "
+                   "loops: the emulator stands in for hardware that a busy CPU cannot slow)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="S",
                    help="stop after S seconds (default: run until Ctrl-C)")
     p.add_argument("--link", type=Path, default=None, metavar="PATH",
@@ -82,8 +90,13 @@ def run(args: argparse.Namespace) -> int:
     """Serve the emulated servos until Ctrl-C or ``--duration``."""
     from sim.servo_emulator_bus import FaultConfig
     from sim.servo_emulator_pty import PtyServoEmulator, make_bus_emulator
+    from teleop.effects import parse_effects
 
     cfg = config_from_args(args)
+    effects = parse_effects(args.effect)
+    if effects.active() and args.physics != "finger":
+        raise UserInputError(f"--effect {args.effect[0]}: needs --physics finger (the simple "
+                             "fallback servo has no physical effects)")
     d = cfg.hand.dynamixel
     protocol = args.protocol or int(d.protocol)
     ids = args.ids if args.ids is not None else tuple(d.ids)
@@ -105,7 +118,14 @@ def run(args: argparse.Namespace) -> int:
                          tuple(args.overload_id), tuple(args.overheat_id), args.seed,
                          tuple(args.voltage_id))
     bus = make_bus_emulator(protocol, ids, tuple(d.inversion), homes, cfg.hand.sim.object,
-                            faults, args.return_delay_us, args.physics)
+                            faults, args.return_delay_us, args.physics, effects,
+                            cfg.hand.sim.engine)
+    if args.realtime:  # before the path is printed: a client may write at once
+        from services.runtime import try_realtime_priority
+
+        if not try_realtime_priority(REALTIME_PRIORITY):
+            print("servo-emulator: no real-time priority (needs CAP_SYS_NICE); on a busy "
+                  "machine replies may time out", file=sys.stderr, flush=True)
     emu = PtyServoEmulator(bus, cfg.hand.sim.physics_rate_hz)
     path = emu.open()
     link: Path | None = args.link

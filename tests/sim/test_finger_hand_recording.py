@@ -10,11 +10,15 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hand_rec_gen import hand_recording  # tests/sim/hand_rec_gen.py
 
+from sim.finger_hand_rec import dynamixel_targets, hand_finger_data
 from teleop.cli import main
 from teleop.effects import EffectSet
+from teleop.errors import RecordingError
+from teleop.recording import Recording, read_recording
 
 
 def _diagnose(path: Path, tmp_path: Path, *extra: str) -> dict:  # type: ignore[type-arg]
@@ -77,3 +81,30 @@ def test_bad_hand_recordings_are_one_line_and_exit_2(problem: str, tmp_path: Pat
     assert "\n" not in err and str(path) in err and "Traceback" not in err, err
     assert {"finger": "--finger 4", "gap": "row", "nan": "row 30", "no_finger_option": "--finger",
             "column": "setpoint_rad_f1"}[problem] in err, err
+
+
+def test_the_dynamixel_drivers_overload_back_off_is_rebuilt_from_the_recorded_load() -> None:
+    """Targets are the set-points, except while the filtered load (0.25 new + 0.75 old) is above
+    the threshold: then the present angle - 0.05 rad (never above the set-point, never < 0)."""
+    sp = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 0.01])
+    joint = np.array([0.2, 0.3, 0.4, 0.5, 0.6, 0.03])
+    load = np.array([100.0, 1000.0, 1000.0, 0.0, 0.0, 1400.0])
+    # filtered: 25, 268.75, 451.6, 338.7, 254.0, 540.5 against 350
+    got = dynamixel_targets(sp, joint, load, 350.0, 0.25)
+    assert np.allclose(got, [1.0, 1.0, 0.35, 1.0, 1.0, 0.0])
+
+
+def test_a_gap_is_refused_in_one_line_or_restarts_the_simulation_with_split_gaps(
+        tmp_path: Path) -> None:
+    path = hand_recording(tmp_path / "hand.csv", 4.0, seed=3)
+    rec = read_recording(path)
+    t = rec.t_s.copy()
+    t[80:] += 0.8  # a hand tick stalled 0.8 s after data row 80
+    cut = Recording(rec.columns, np.column_stack([t, rec.data[:, 1:]]), rec.meta,
+                    source=str(path))
+    with pytest.raises(RecordingError, match=r"'t_s' has a gap .* data row 81"):
+        hand_finger_data(cut, 1)
+    data = hand_finger_data(cut, 1, split_gaps=True)
+    assert data.active is not None and not data.active[79] and data.active[80]
+    assert "gap" in data.note
+    assert not np.any((data.t_s[data.keep] >= t[80]) & (data.t_s[data.keep] < t[80] + 0.15))

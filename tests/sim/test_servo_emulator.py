@@ -225,9 +225,29 @@ def test_cli_prints_path_and_exits_cleanly_on_ctrl_c() -> None:
     (["--ids", "1,1"], "--ids"),
     (["--ids", "1,2", "--overload-id", "7"], "--overload-id 7"),  # no such servo
     (["--overheat-id", "9"], "--overheat-id 9"),
+    (["--effect", "warp_drive=1"], "warp_drive"),
+    (["--physics", "simple", "--effect", "dead_time=0.1"], "--effect dead_time=0.1"),
 ])
 def test_cli_rejects_bad_options_in_one_line(argv: list[str], names: str) -> None:
     out = subprocess.run([sys.executable, "-m", "teleop.cli", "servo-emulator", *argv,
                           "--duration", "0.1"], capture_output=True, text=True, timeout=30)
     assert out.returncode == 2
     assert out.stderr.strip().count("\n") == 0 and names in out.stderr
+
+
+def test_an_effect_given_to_the_emulator_acts_in_its_finger_physics() -> None:
+    """--effect reaches the finger model: a 0.1 s dead time shifts a closing move by 0.1 s."""
+    from sim.servo_emulator_physics import FingerServoPhysics, ServoDrive
+    from teleop.effects import EffectSet
+
+    paths = {}
+    for delay in (0.0, 0.1):
+        phys = FingerServoPhysics([0.0], [1], None, EffectSet(dead_time=delay))
+        assert ("dead_time=0.1" in phys.label) == (delay > 0)
+        path = []
+        for _ in range(8):
+            phys.step([ServoDrive(True, 2.0, 5.0, 1.0)], 1e-3, steps=50)  # batches of 50 ms
+            path.append(phys.sense()[0].angle_rad)
+        paths[delay] = path
+    assert paths[0.0][1] > 0.03 and paths[0.1][1] == 0.0  # still waiting at 0.1 s
+    assert paths[0.1][2:] == pytest.approx(paths[0.0][:-2], abs=2e-3)  # the same move, later

@@ -1,0 +1,1 @@
+"""teleop.diagnose: system identification of missing physics (``teleop diagnose``)."""

@@ -1,0 +1,300 @@
+"""The diagnose pipeline for the axis model: nominal fit, residual, windows, effects, ranking.
+
+Pure functions over recordings; the result is a frozen :class:`Diagnosis`
+(:mod:`teleop.diagnose.results`) that the terminal report, the JSON writer and the plot consume.
+Effect selection lives in :mod:`teleop.diagnose.select`.
+
+Analysis mode: output-error (simulate and compare positions) when the fitted nominal simulation
+tracks the measurement (NRMSE below ``OE_DRIFT_NRMSE``); otherwise (a simulation that drifts or
+diverges, typical of closed-loop data or an integrating axis) equation-error (inverse dynamics:
+the effort residual on the filtered, differentiated position).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from teleop.diagnose import candidates as cand
+from teleop.diagnose import library
+from teleop.diagnose.axis_model import Array
+from teleop.diagnose.equation_error import (
+    EEFit,
+    EESignals,
+    ee_apply,
+    ee_fit,
+    ee_signals,
+    model_equation_error,
+)
+from teleop.diagnose.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.propose import select_with_library
+from teleop.diagnose.residual import analyse_residual, noise_std
+from teleop.diagnose.results import (
+    DiagnoseOptions,
+    Diagnosis,
+    EffectResult,
+    ProposedTerm,
+    Traces,
+    Validation,
+    nrmse,
+)
+from teleop.diagnose.select_ee import select_ee
+from teleop.diagnose.windows import conditions, excess, locate_windows, moving_rms
+from teleop.errors import RecordingError, UserInputError
+from teleop.recording import Recording
+
+OE_DRIFT_NRMSE = 0.7
+MIN_SAMPLES = 200
+
+
+def _signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None, Array]:
+    where = rec.source
+    y = rec.column(opts.output_col)
+    u = rec.column(opts.input_col) if opts.input_col else None
+    t = rec.t_s
+    for name, col in (("t_s", t), (opts.output_col, y)) + (
+            ((opts.input_col, u),) if u is not None else ()):
+        bad = ~np.isfinite(col)
+        if np.any(bad):
+            raise RecordingError(f"{where}: column {name!r} has a gap (missing or non-finite "
+                                 f"value) at data row {int(np.argmax(bad)) + 1}")
+    if len(t) < MIN_SAMPLES:
+        raise RecordingError(f"{where}: column 't_s' has {len(t)} data rows, too short to "
+                             f"diagnose (need at least {MIN_SAMPLES})")
+    if float(np.std(y)) <= 0:
+        raise RecordingError(f"{where}: column {opts.output_col!r} never changes; nothing to fit")
+    dts = np.diff(t)
+    if np.max(dts) > 5 * np.median(dts):
+        i = int(np.argmax(dts))
+        raise RecordingError(f"{where}: column 't_s' has a sampling gap of {dts[i]:.3g} s at "
+                             f"data row {i + 2} (t={t[i + 1]:.6g} s; uneven sampling; split the "
+                             "recording)")
+    return t, u, y
+
+
+def initial_state(t: Array, y: Array, span_s: float = 0.03) -> tuple[float, float]:
+    """Position and velocity at the first sample from a quadratic fit over ``span_s``."""
+    n = max(5, int(np.searchsorted(t, t[0] + span_s)))
+    c = np.polyfit(t[:n] - t[0], y[:n], 2)
+    return float(c[2]), float(c[1])
+
+
+def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
+                 opts: DiagnoseOptions) -> ModelFit:
+    """Nominal output-error fit; if it tracks poorly from the equation-error start, grow the
+    fitted horizon (first 20 %, 50 %, all of every segment) so the fit cannot lock onto a wrong
+    oscillation."""
+    fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
+    if nrmse(data.y, fit.y_fit) < 0.05:
+        return fit
+    grown = start
+    for frac in (0.2, 0.5, 1.0):
+        mask = np.concatenate([np.arange(len(s.y)) < frac * len(s.y) for s in data.segments])
+        g = fit_model(data, nominal, grown, (), opts.max_nfev * 4, mask=mask if frac < 1 else None)
+        grown = g.as_dict()
+    return g if g.rss < fit.rss else fit
+
+
+def _decimate(t: Array, u: Array | None, y: Array, rate_hz: float) -> Segment:
+    fs = 1.0 / float(np.median(np.diff(t)))
+    m = max(1, int(round(fs / rate_hz)))
+    if m == 1:
+        return Segment(t, u, y)
+    n = (len(t) // m) * m
+    td, yd = t[:n:m], y[:n:m]
+    ud = None if u is None else u[:n].reshape(-1, m).mean(axis=1)
+    return Segment(td, ud, yd)
+
+
+def _contiguous(ts: Sequence[Array]) -> Array:
+    """Segment time bases laid end to end (the first keeps its own times)."""
+    if len(ts) == 1:
+        return ts[0]
+    out, off = [], float(ts[0][0])
+    for t in ts:
+        out.append(t - t[0] + off)
+        off = float(out[-1][-1] + (t[1] - t[0]))
+    return np.concatenate(out)
+
+
+def _concat_ee(sigs: Sequence[EESignals]) -> EESignals:
+    if len(sigs) == 1:
+        return sigs[0]
+    u = None if sigs[0].u is None else np.concatenate([s.u for s in sigs])  # type: ignore[misc]
+    return EESignals(_contiguous([s.t for s in sigs]), np.concatenate([s.x for s in sigs]),
+                     np.concatenate([s.v for s in sigs]), np.concatenate([s.a for s in sigs]),
+                     u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
+
+
+def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
+             validate: Recording | None = None) -> Diagnosis:
+    """Diagnose what the nominal axis model misses in ``recordings``."""
+    if not recordings:
+        raise UserInputError("no recording given")
+    raw = [_signals(r, opts) for r in recordings]
+    has_input = opts.input_col is not None
+    nominal = opts.nominal
+    fixed_inertia = nominal.value("inertia") or 1.0
+    sigs = [ee_signals(t, y, u) for t, u, y in raw]
+    sig = _concat_ee(sigs)
+    # scales for start values and bounds
+    vel = float(np.sqrt(np.mean(sig.v ** 2))) or 1.0
+    umax = float(max(np.max(np.abs(u)) for _, u, _ in raw)) if has_input else 0.0  # type: ignore
+    effort = (float(np.sqrt(np.mean(sig.u ** 2))) if sig.u is not None
+              else fixed_inertia * float(np.sqrt(np.mean(sig.a ** 2))))
+    pos = float(max(np.ptp(y) for _, _, y in raw))
+    nom_ee = ee_fit(sig, nominal, {}, fixed_inertia)
+    inertia = nom_ee.get("inertia", fixed_inertia) if has_input else fixed_inertia
+    dur = float(sum(t[-1] - t[0] for t, _, _ in raw))
+    dt = float(np.median(np.diff(raw[0][0])))
+    scales = cand.Scales(effort or 1.0, pos, vel, umax, max(inertia, 1e-9), dur, dt)
+    rate = min(opts.fit_rate_hz, max(100.0, opts.max_fit_samples / dur))
+    segs = tuple(_decimate(t, u, y, rate) for t, u, y in raw)
+    max_dt = min(2e-3, float(np.median(np.diff(segs[0].t))))
+    data = FitData(segs, max_dt, scales, fixed_inertia, 0.05 * vel)
+    start = {n: c for n, c in zip(nom_ee.names, nom_ee.coef, strict=True)}
+    if has_input and "inertia" in nominal.terms:
+        start["inertia"] = max(start.get("inertia", inertia), 1e-6)
+    for i, (t, _, y) in enumerate(raw):
+        start[f"x0_{i}"], start[f"v0_{i}"] = initial_state(t, y)
+    names = cand.applicable(nominal, has_input)
+    noise = float(np.sqrt(np.mean([noise_std(y) ** 2 for _, _, y in raw])))
+
+    nom_fit = _fit_nominal(data, nominal, start, opts)
+    nom_nrmse = nrmse(data.y, nom_fit.y_fit)
+    mode = opts.analysis
+    if mode == "auto":
+        if nom_nrmse < OE_DRIFT_NRMSE:
+            mode, reason = "output-error", (f"the nominal simulation tracks the measurement "
+                                            f"(NRMSE {nom_nrmse:.3f})")
+        else:
+            mode, reason = "equation-error", (f"the nominal simulation drifts (NRMSE "
+                                              f"{nom_nrmse:.3g}); fitting inverse dynamics")
+    else:
+        reason = "chosen by --analysis"
+
+    t_all = _contiguous([s.t for s in segs])
+    edge = np.zeros(len(sig.t), bool)  # filter transients at the ends of every segment
+    m = int(3 * sig.fs_hz / sig.cutoff_hz)
+    start_i = 0
+    for s_ in sigs:
+        edge[start_i: start_i + m] = True
+        edge[start_i + len(s_.t) - m: start_i + len(s_.t)] = True
+        start_i += len(s_.t)
+    conds = conditions(sig.t, sig.x, sig.v, sig.u)
+    signals = {"position": data.y}
+    proposed: tuple[ProposedTerm, ...] = ()   # library terms (output-error only)
+    if mode == "output-error":
+        final, chosen, ranking, proposed = select_with_library(
+            data, nominal, nom_fit, opts, names, sig, fixed_inertia, noise)
+        r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
+        before, after = nom_nrmse, nrmse(data.y, final.y_fit)
+        p_nom, e_nom = build(nom_fit.names, nom_fit.theta, data)
+        p_fin, e_fin = build(final.names, final.theta, data)
+        ee_nom = model_equation_error(sig, p_nom, e_nom)
+        ee_fin = model_equation_error(sig, p_fin, e_fin)
+        nominal_params = tuple((k, v) for k, v in nom_fit.as_dict().items()
+                               if not k.startswith(("x0_", "v0_", BEFORE)))
+        final_params = tuple((k, v) for k, v in final.as_dict().items()
+                             if not k.startswith(("x0_", "v0_", BEFORE)))
+        traces = Traces(t_all, data.y, nom_fit.y_fit, final.y_fit, r_after)
+        if segs[0].u is not None:
+            signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
+    else:
+        nom_e, fin_e, chosen, ranking = select_ee(sig, nominal, opts, names, fixed_inertia,
+                                                   scales)
+        ee_nom, ee_fin = nom_e.residual, fin_e.residual
+        tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
+        tgt_scale = float(np.linalg.norm(tgt - np.mean(tgt)))
+        before = float(np.linalg.norm(ee_nom[~edge])) / tgt_scale
+        after = float(np.linalg.norm(ee_fin[~edge])) / tgt_scale
+        r_before, r_after = ee_nom, ee_fin
+        nominal_params = tuple(zip(nom_e.names, nom_e.coef, strict=True))
+        final_params = tuple(zip(fin_e.names, fin_e.coef, strict=True)) + fin_e.extra
+        traces = Traces(sig.t, sig.u if sig.u is not None else fixed_inertia * sig.a,
+                        (sig.u if sig.u is not None else fixed_inertia * sig.a) + ee_nom,
+                        (sig.u if sig.u is not None else fixed_inertia * sig.a) + ee_fin, ee_fin)
+        signals = {"position": sig.x}
+        if sig.u is not None:
+            signals["input"] = sig.u
+    windows = locate_windows(sig.t, excess(sig.t, ee_nom, ee_fin, ~edge), conds)
+    if not windows and mode == "output-error" and noise > 0:
+        # no burst and no bias in the effort balance: where does the simulated position
+        # depart from the measurement by more than the noise?
+        dt_fit = float(np.median(np.diff(t_all)))
+        score = moving_rms(r_before, int(0.2 / dt_fit)) / noise
+        conds_fit = {k: np.interp(t_all, sig.t, m.astype(float)) > 0.5 for k, m in conds.items()}
+        windows = locate_windows(t_all, score, conds_fit)
+    yy = data.y if mode == "output-error" else np.concatenate([y for _, _, y in raw])
+    stats_b = analyse_residual(r_before, yy, signals)
+    stats_a = analyse_residual(r_after, yy, signals)
+    val = None
+    if validate is not None:
+        val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
+               else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia))
+    units = (library.units(opts.input_col, "effort units"),
+             library.units(opts.output_col, "position units"))
+    return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
+                     windows, stats_b, stats_a, before, after, val, traces, proposed, units)
+
+
+def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,
+              final: ModelFit) -> Validation:
+    """NRMSE of both models on a held-out recording (only the initial state is fitted)."""
+    t, u, y = _signals(rec, opts)
+    if (u is None) != (not data.has_input):
+        raise UserInputError(f"{rec.source}: validation recording must match the input setup")
+    seg = _decimate(t, u, y, 1.0 / float(np.median(np.diff(data.segments[0].t))))
+    vdata = FitData((seg,), data.max_dt_s, data.scales, data.fixed_inertia,
+                    data.stribeck_velocity)
+    x0, v0 = initial_state(t, y)
+    out = []
+    for f in (nom, final):
+        start = {**{k: v for k, v in f.as_dict().items()
+                    if not k.startswith(("x0_", "v0_", BEFORE))},
+                 "x0_0": x0, "v0_0": v0}
+        out.append(nrmse(seg.y, _fit_state_only(vdata, start)))
+    return Validation(out[0], out[1])
+
+
+def _validate_ee(rec: Recording, opts: DiagnoseOptions, nominal: AxisNominal, nom: EEFit,
+                 final: EEFit, fixed_inertia: float) -> Validation:
+    """Equation-error NRMSE (effort) of both fitted models on a held-out recording."""
+    t, u, y = _signals(rec, opts)
+    sig = ee_signals(t, y, u)
+    m = int(3 * sig.fs_hz / sig.cutoff_hz)
+    keep = slice(m, len(t) - m)
+    tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[keep]
+    scale = float(np.linalg.norm(tgt - np.mean(tgt))) or 1.0
+    return Validation(*(float(np.linalg.norm(ee_apply(sig, nominal, f, fixed_inertia)[keep]))
+                        / scale for f in (nom, final)))
+
+
+def _fit_state_only(data: FitData, start: dict[str, float]) -> Array:
+    """Simulation with every parameter fixed but the initial state (fitted)."""
+    from scipy import optimize
+
+    names = tuple(start)
+    base = [start[k] for k in names]
+    i0, i1 = names.index("x0_0"), names.index("v0_0")
+
+    def theta(s: Array) -> tuple[float, ...]:
+        th = list(base)
+        th[i0], th[i1] = float(s[0]), float(s[1])
+        return tuple(th)
+
+    def resid(s: Array) -> Array:
+        r = simulate(names, theta(s), data) - data.y
+        return np.where(np.isfinite(r), r, 10 * data.scales.position)
+
+    x0 = np.array([start["x0_0"], start["v0_0"]])
+    res = optimize.least_squares(resid, x0, x_scale=np.array([data.scales.position,
+                                                              data.scales.velocity]),
+                                 max_nfev=40)
+    return simulate(names, theta(res.x), data)
+
+
+__all__ = ["DiagnoseOptions", "Diagnosis", "EffectResult", "Validation", "Traces", "diagnose",
+           "nrmse", "noise_std"]

@@ -1,0 +1,217 @@
+"""Equation-error (inverse dynamics) fits of the axis: linear least squares on filtered signals.
+
+The position is low-passed with a zero-phase Butterworth filter and differentiated twice; every
+regressor (input included) goes through the same filter, so linear terms satisfy the filtered
+equation exactly.  Effects that enter nonlinearly through one constant (dead time, lag,
+saturation, Stribeck velocity) are handled by a one-dimensional grid around the linear solve.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+from scipy import signal as sps
+
+from teleop.diagnose.axis_model import Array, AxisParams, delayed, input_effort, lagged
+from teleop.diagnose.model import AxisNominal
+from teleop.effects import EffectSet
+
+EE_EFFECTS = ("dead_time", "coulomb_friction", "asymmetric_friction", "stiction",
+              "actuator_saturation", "actuator_gain", "actuator_lag", "sensor_offset",
+              "nonlinear_stiffness", "gravity")
+
+
+@dataclass(frozen=True, slots=True)
+class EESignals:
+    """Filtered position, velocity, acceleration and input on the full time grid."""
+
+    t: Array
+    x: Array
+    v: Array
+    a: Array
+    u: Array | None
+    fs_hz: float
+    cutoff_hz: float
+    step: int          # decimation of the regression rows (roughly independent residuals)
+
+
+@dataclass(frozen=True, slots=True)
+class EEFit:
+    """A linear equation-error fit: coefficients by column name and the effort residual."""
+
+    names: tuple[str, ...]
+    coef: tuple[float, ...]
+    residual: Array      # effort residual on the full grid
+    rss: float           # on the decimated rows
+    n: int
+    n_params: int
+    extra: tuple[tuple[str, float], ...] = ()
+
+    def get(self, name: str, default: float = 0.0) -> float:
+        """Coefficient ``name``."""
+        return self.coef[self.names.index(name)] if name in self.names else default
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion on the decimated rows."""
+        return self.n * math.log(max(self.rss, 1e-300) / self.n) + self.n_params * math.log(self.n)
+
+
+def _filt(sig: Array, fs: float, fc: float) -> Array:
+    sos = sps.butter(2, min(fc / (fs / 2), 0.9), output="sos")
+    return sps.sosfiltfilt(sos, sig)
+
+
+def ee_signals(t: Array, y: Array, u: Array | None, cutoff_hz: float | None = None) -> EESignals:
+    """Filter and differentiate ``y``; the cutoff defaults to fs/20, at most 15 Hz."""
+    fs = 1.0 / float(np.median(np.diff(t)))
+    fc = cutoff_hz or min(15.0, fs / 20)
+    x = _filt(y, fs, fc)
+    v = np.gradient(x, t)
+    a = np.gradient(v, t)
+    uf = None if u is None else np.asarray(u, float)
+    step = max(1, int(fs / (4 * fc)))
+    return EESignals(t, x, v, a, uf, fs, fc, step)
+
+
+def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
+             fixed_inertia: float) -> tuple[list[str], list[Array], list[tuple[float, float]],
+                                            Array]:
+    """Regressor columns (unfiltered), their bounds and the fixed-part target."""
+    x, v, a = sig.x, sig.v, sig.a
+    eps = 0.02 * float(np.std(v)) + 1e-12
+    sgn = np.tanh(v / eps)
+    names: list[str] = []
+    cols: list[Array] = []
+    bnds: list[tuple[float, float]] = []
+    target = np.zeros_like(x)
+    term_cols = {"inertia": a, "viscous": v, "stiffness": x, "gravity": np.sin(x),
+                 "coulomb": sgn, "offset": -np.ones_like(x)}
+    for term in nominal.terms:
+        if term == "inertia" and sig.u is None:
+            continue
+        names.append(term)
+        cols.append(term_cols[term])
+        bnds.append(nominal.bounds(term))
+    if sig.u is None:
+        target = target - fixed_inertia * a
+    else:
+        ue = sig.u
+        if "dead_time" in effects:
+            ue = delayed(sig.t, ue, effects["dead_time"])
+        if "actuator_saturation" in effects:
+            s = effects["actuator_saturation"]
+            ue = np.clip(ue, -s, s)
+        if "actuator_lag" in effects:
+            ue = lagged(sig.t, ue, effects["actuator_lag"])
+        if "actuator_gain" in effects:
+            names.append("actuator_gain")
+            cols.append(-ue)
+            bnds.append((1e-3, 100.0))
+        else:
+            target = target + ue
+        if "inertia" not in nominal.terms:
+            target = target - fixed_inertia * a
+    extra_cols = {
+        "coulomb_friction": (sgn, (0.0, math.inf)),
+        "asymmetric_friction": ((v > 0).astype(float), (0.0, math.inf)),
+        "nonlinear_stiffness": (x ** 3, (-math.inf, math.inf)),
+        "gravity": (np.sin(x), (-math.inf, math.inf)),
+        "sensor_offset": (np.ones_like(x), (-math.inf, math.inf)),
+    }
+    for name, (col, bd) in extra_cols.items():
+        if name in effects:
+            names.append(name)
+            cols.append(col)
+            bd_ = bd
+            cols[-1] = col
+            bnds.append(bd_)
+    if "asymmetric_friction" in effects:  # direction-dependent viscous level as well
+        names.append("asymmetric_viscous")
+        cols.append(v * (v > 0))
+        bnds.append((-math.inf, math.inf))
+    if "stiction" in effects:
+        vs = effects["stiction"]
+        names.append("stiction")
+        cols.append(sgn * np.exp(-(v / vs) ** 2))
+        bnds.append((0.0, math.inf))
+    return names, cols, bnds, target
+
+
+def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | None = None,
+           fixed_inertia: float = 1.0) -> EEFit:
+    """Bounded linear least squares of the equation error with ``effects`` (name -> constant)."""
+    effects = effects or {}
+    names, cols, bnds, target = _columns(sig, nominal, effects, fixed_inertia)
+    fs, fc = sig.fs_hz, sig.cutoff_hz
+    phi = np.column_stack([_filt(c, fs, fc) for c in cols]) if cols else np.zeros((len(target),
+                                                                                     0))
+    tgt = _filt(target, fs, fc)
+    margin = int(3 * fs / fc) + 1
+    rows = slice(margin, len(tgt) - margin, sig.step)
+    A, b = phi[rows], tgt[rows]
+    if A.shape[1]:
+        scale = np.maximum(np.sqrt(np.mean(A ** 2, axis=0)), 1e-300)
+        lo = np.array([bd[0] for bd in bnds]) * scale
+        hi = np.array([bd[1] for bd in bnds]) * scale
+        res = optimize.lsq_linear(A / scale, b, bounds=(lo, hi), method="bvls")
+        coef = res.x / scale
+    else:
+        coef = np.zeros(0)
+    resid_full = (phi @ coef - tgt) if A.shape[1] else -tgt
+    r = resid_full[rows]
+    n_eff_params = len(names) + sum(1 for k in effects if k in ("dead_time", "actuator_lag",
+                                                                 "actuator_saturation",
+                                                                 "stiction"))
+    extra = tuple((k, v) for k, v in effects.items()
+                  if k in ("dead_time", "actuator_lag", "actuator_saturation", "stiction"))
+    return EEFit(tuple(names), tuple(float(c) for c in coef), resid_full, float(r @ r), len(r),
+                 n_eff_params, extra)
+
+
+def ee_effect_fit(sig: EESignals, nominal: AxisNominal, base: dict[str, float], name: str,
+                  grid: tuple[float, ...], fixed_inertia: float) -> EEFit:
+    """Best equation-error fit of ``base`` plus effect ``name`` (grid over its constant)."""
+    best: EEFit | None = None
+    for g in grid:
+        fit = ee_fit(sig, nominal, {**base, name: g}, fixed_inertia)
+        if best is None or fit.rss < best.rss:
+            best = fit
+    assert best is not None
+    return best
+
+
+def model_equation_error(sig: EESignals, p: AxisParams, eff: EffectSet) -> Array:
+    """Effort residual ``J a - (sum of modelled efforts)`` of a full model on filtered signals.
+
+    Backlash and series compliance are ignored here (they need the hidden load state).
+    """
+    x = sig.x - eff.sensor_offset
+    v, a = sig.v, sig.a
+    f = (np.zeros_like(x) if sig.u is None
+         else _filt(input_effort(sig.t, sig.u, eff), sig.fs_hz, sig.cutoff_hz))
+    eps = 0.02 * float(np.std(v)) + 1e-12
+    sgn = np.tanh(v / eps)
+    fric = (p.coulomb + eff.coulomb_friction) * sgn + eff.asymmetric_friction * (v > 0)
+    if eff.stiction > 0:
+        fric = fric + eff.stiction * sgn * np.exp(-(v / max(p.stribeck_velocity, 1e-12)) ** 2)
+    total = (f - p.viscous * v - p.stiffness * x + p.offset - (p.gravity + eff.gravity)
+             * np.sin(x) - eff.nonlinear_stiffness * x ** 3 - fric)
+    return p.inertia * a - total
+
+
+def ee_apply(sig: EESignals, nominal: AxisNominal, fit: EEFit, fixed_inertia: float) -> Array:
+    """Effort residual of an already fitted equation-error model on other signals."""
+    effects = dict(fit.extra)
+    for n in fit.names:
+        if n in EE_EFFECTS and n not in nominal.terms and n not in effects:
+            effects[n] = 1.0
+    names, cols, _, target = _columns(sig, nominal, effects, fixed_inertia)
+    coef = dict(zip(fit.names, fit.coef, strict=True))
+    fs, fc = sig.fs_hz, sig.cutoff_hz
+    total = sum((coef[n] * _filt(c, fs, fc) for n, c in zip(names, cols, strict=True)),
+                np.zeros(len(target)))
+    return total - _filt(target, fs, fc)

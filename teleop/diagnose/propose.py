@@ -1,0 +1,188 @@
+"""Physics outside the catalog: propose library terms where the chosen effects leave a residual.
+
+When the output-error residual after the catalog effects stays above the noise:
+
+1. the **force-domain residual** of the fitted model (inverse dynamics on the filtered,
+   differentiated position, :func:`equation_error.model_equation_error`) is regressed on the
+   typed library (:mod:`teleop.diagnose.library`); a term kind with a structural constant
+   (wavenumber, delay) is represented by its best constant on a grid;
+2. **sequentially thresholded least squares** (STLSQ) keeps the terms whose share of the
+   residual is at least ``STLSQ_SHARE`` (columns standardised; refitted after every cut);
+3. each surviving term (a sin/cos pair is one term) is added to the nominal **simulation**
+   (coefficients, and a pair's wavenumber, fitted by output error) and accepted only by the one
+   selection rule (:mod:`teleop.diagnose.criterion`: score, a scanned constant counting as one
+   more parameter, and held-out gain);
+4. with terms accepted, the catalog effects are selected again on top of nominal + terms (not at
+   all when these leave only noise): a catalog effect that was only standing in for
+   out-of-catalog physics is not named.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from teleop.diagnose import criterion as crit
+from teleop.diagnose.axis_model import Array
+from teleop.diagnose.equation_error import EESignals, _filt, model_equation_error
+from teleop.diagnose.fit import NUMERIC_FAILURES, FitData, ModelFit, build, fit_model
+from teleop.diagnose.library import PREFIX, WAVE, Term, column, resolve
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.results import DiagnoseOptions, EffectResult, ProposedTerm
+from teleop.diagnose.select import _holdout_gain, informative, select_oe
+
+STLSQ_SHARE = 0.1
+DELAYS_S = (0.005, 0.01, 0.02, 0.05, 0.1)
+
+
+def _rows(sig: EESignals) -> slice:
+    margin = int(3 * sig.fs_hz / sig.cutoff_hz) + 1
+    return slice(margin, len(sig.t) - margin, sig.step)
+
+
+def _cols(sig: EESignals, group: tuple[Term, ...]) -> Array:
+    return np.column_stack([_filt(column(t, sig.t, sig.x, sig.v, sig.u), sig.fs_hz,
+                                  sig.cutoff_hz) for t in group])
+
+
+def _best(sig: EESignals, e: Array, groups: list[tuple[Term, ...]]) -> tuple[Term, ...]:
+    """The group of a scanned family that explains most of ``e``."""
+    rows = _rows(sig)
+    best, best_g = math.inf, groups[0]
+    for g in groups:
+        a = _cols(sig, g)[rows]
+        c, *_ = np.linalg.lstsq(a, e[rows], rcond=None)
+        rss = float(np.sum((e[rows] - a @ c) ** 2))
+        if rss < best:
+            best, best_g = rss, g
+    return best_g
+
+
+def candidate_groups(sig: EESignals, e: Array) -> list[tuple[Term, ...]]:
+    """One representative of every library family for residual ``e``."""
+    x = sig.x[_rows(sig)]
+    span = float(np.ptp(x)) or 1.0
+    noise = float(np.std(np.diff(sig.x))) or 1e-6
+    w_lo, w_hi = 3 * math.pi / span, min(0.3 / noise, 200 * math.pi / span)
+    dw = math.pi / (2 * span)
+    groups: list[tuple[Term, ...]] = []
+    if w_hi > w_lo:
+        def pair(w: float) -> tuple[Term, ...]:
+            return Term("sin", float(w)), Term("cos", float(w))
+        w0 = _best(sig, e, [pair(w) for w in np.arange(w_lo, w_hi, dw)])[0].const
+        groups.append(_best(sig, e, [pair(w) for w in w0 + np.linspace(-dw, dw, 9)]))
+    groups += [(Term(k),) for k in ("vabsv", "v3", "v2", "x2")]  # x^3: catalog's cubic spring
+    if sig.u is not None:
+        dur = float(sig.t[-1] - sig.t[0])
+        groups.append(_best(sig, e, [(Term("udelay", d),) for d in DELAYS_S if d < dur / 4]))
+    return groups
+
+
+def stlsq(a: Array, b: Array, owner: list[int], share: float = STLSQ_SHARE,
+          iters: int = 10) -> Array:
+    """Sequentially thresholded least squares with grouped columns (``owner[j]``: the group
+    of column ``j``): drop every group whose contribution (rms of its fitted part) is below
+    ``share`` of the rms of ``b``, refit on the rest, until nothing changes."""
+    scale = np.maximum(np.sqrt(np.mean(a ** 2, axis=0)), 1e-300)
+    an = a / scale
+    keep = np.ones(a.shape[1], bool)
+    coef = np.zeros(a.shape[1])
+    floor = share * float(np.sqrt(np.mean(b ** 2)))
+    for _ in range(iters):
+        coef[:] = 0.0
+        if not keep.any():
+            break
+        c, *_ = np.linalg.lstsq(an[:, keep], b, rcond=None)
+        coef[keep] = c
+        new = keep.copy()
+        for g in set(owner):
+            idx = [j for j, o in enumerate(owner) if o == g]
+            part = an[:, idx] @ coef[idx]
+            if float(np.sqrt(np.mean(part ** 2))) < floor:
+                new[idx] = False
+        if (new == keep).all():
+            break
+        keep = new
+    return coef / scale
+
+
+def _ranked(sig: EESignals, e: Array) -> list[tuple[tuple[Term, ...], tuple[float, ...],
+                                                      float]]:
+    """Library groups STLSQ keeps for residual ``e``, largest contribution first."""
+    groups = candidate_groups(sig, e)
+    rows = _rows(sig)
+    cols = [_cols(sig, g)[rows] for g in groups]
+    owner = [i for i, g in enumerate(groups) for _ in g]
+    a = np.column_stack(cols)
+    coef = stlsq(a, e[rows], owner)
+    out = []
+    j = 0
+    for g, c in zip(groups, cols, strict=True):
+        cg = coef[j: j + len(g)]
+        j += len(g)
+        if np.any(cg != 0):
+            out.append((g, tuple(float(v) for v in cg), float(np.sqrt(np.mean((c @ cg) ** 2)))))
+    return sorted(out, key=lambda r: -r[2])
+
+
+def propose(data: FitData, nominal: AxisNominal, nom: ModelFit, final: ModelFit,
+            sig: EESignals, opts: DiagnoseOptions, noise: float
+            ) -> tuple[ModelFit, tuple[ProposedTerm, ...]]:
+    """Library terms for the force-domain residual of ``final`` (the model with the chosen
+    catalog effects), each judged by the rule against the nominal model ``nom`` with the terms
+    accepted before it; returns that model and the terms (``final`` and none when nothing
+    passes)."""
+    p, eff = build(final.names, final.theta, data)
+    e = model_equation_error(sig, p, eff)    # J a - modelled efforts: the effort it lacks
+    current = nom
+    accepted: list[ProposedTerm] = []
+    for group, coefs, _ in _ranked(sig, e):
+        start = {**current.as_dict(), **{t.key: c for t, c in zip(group, coefs, strict=True)}}
+        if group[0].kind == "sin":   # its wavenumber is refined by the simulation fit
+            start[f"{WAVE}{group[0].const:.6g}"] = group[0].const
+        try:
+            f = fit_model(data, nominal, start, current.effects, opts.max_nfev * 4)
+            gain, rms0 = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
+        except NUMERIC_FAILURES:
+            continue
+        k = len(group) + (1 if group[0].kind in ("sin", "udelay") else 0)  # + scanned const
+        v = crit.judge(current.rss, f.rss, f.y_fit - data.y, k, gain, informative(rms0, noise),
+                       criterion=opts.criterion)
+        if v.accepted:
+            accepted.append(ProposedTerm(tuple(t.key for t in group), coefs, v.score, gain))
+            current = f
+    if not accepted:
+        return final, ()
+    return current, tuple(accepted)
+
+
+def final_terms(fit: ModelFit, accepted: tuple[ProposedTerm, ...]) -> tuple[ProposedTerm, ...]:
+    """The accepted terms with their coefficients (and fitted wavenumbers) as in ``fit``."""
+    resolved = dict(zip((k for k in fit.names if k.startswith(PREFIX)),
+                        (k for k, _ in resolve(fit.as_dict())), strict=True))
+    return tuple(ProposedTerm(tuple(resolved[k] for k in t.keys),
+                              tuple(fit.value(k) for k in t.keys), t.score, t.holdout_gain)
+                 for t in accepted)
+
+
+def select_with_library(data: FitData, nominal: AxisNominal, nom: ModelFit,
+                        opts: DiagnoseOptions, names: tuple[str, ...], sig: EESignals,
+                        fixed_inertia: float, noise: float
+                        ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]],
+                                   tuple[ProposedTerm, ...]]:
+    """Catalog selection (:func:`select.select_oe`); then, while the residual stays above the
+    noise, library terms (:func:`propose`) and the catalog selected again on top of them,
+    unless they leave only noise (``select_oe``'s own stopping rule)."""
+    final, chosen, ranking = select_oe(data, nominal, nom, opts, names, sig, fixed_inertia,
+                                       noise)
+    if math.sqrt(final.rss / final.n) < opts.noise_factor * noise:
+        return final, chosen, ranking, ()
+    base, proposed = propose(data, nominal, nom, final, sig, opts, noise)
+    if not proposed:
+        return final, chosen, ranking, ()
+    final, chosen = base, []
+    if math.sqrt(base.rss / base.n) >= opts.noise_factor * noise:
+        final, chosen, _ = select_oe(data, nominal, base, opts, names, sig, fixed_inertia,
+                                     noise)
+    return final, chosen, ranking, final_terms(final, proposed)

@@ -1,0 +1,259 @@
+"""Effect selection for the axis diagnosis: candidate fits, ranking, greedy forward selection
+with held-out checks, backward elimination; output-error and equation-error variants."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from teleop.diagnose import candidates as cand
+from teleop.diagnose import criterion as crit
+from teleop.diagnose.equation_error import (
+    EE_EFFECTS,
+    EESignals,
+    ee_effect_fit,
+    ee_fit,
+)
+from teleop.diagnose.fit import (
+    NUMERIC_FAILURES,
+    FitData,
+    ModelFit,
+    fit_model,
+    scan_effect,
+    simulate,
+)
+from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.results import DiagnoseOptions, EffectResult
+
+HOLDOUT_FLOOR = 2.0   # noise levels (twice the floor, as the finger path)
+
+
+def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple[str, float], ...],
+                                                                     tuple[tuple[str, float], ...]]:
+    z = fit.value(f"effect:{name}")
+    sz = fit.std(f"effect:{name}")
+    val = cand.to_effect_value(name, z, data.scales, data.max_dt_s)
+    std = sz
+    if name == "series_compliance":  # fitted as compliance z = 1/k_s
+        std = sz / z ** 2 if z > 0 else math.inf
+    params: list[tuple[str, float]] = [(name, val)]
+    stds: list[tuple[str, float]] = [(name, std)]
+    if name == "stiction":
+        params.append(("stribeck_velocity", fit.value("stribeck_velocity")))
+    return tuple(params), tuple(stds)
+
+
+def _score(base: ModelFit, aug: ModelFit, data: FitData) -> float:
+    """The shared rule's penalised likelihood gain of ``aug`` over ``base``."""
+    r = aug.y_fit - data.y
+    n = int(np.sum(np.isfinite(r)))
+    return crit.score(base.rss, aug.rss, n, aug.n_params - base.n_params, crit.effective_n(r))
+
+
+def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: ModelFit,
+                  nfev: int) -> tuple[float, float]:
+    """Relative error reduction on the last 30 % of every segment, both fitted on the rest,
+    and the rms error of ``base`` there (is the held-out part informative?)."""
+    masks = []
+    for s in data.segments:
+        m = np.ones(len(s.y), bool)
+        m[int(0.7 * len(s.y)):] = False
+        masks.append(m)
+    train = np.concatenate(masks)
+    test = ~train
+    y = data.y
+    errs = []
+    for f in (base, aug):
+        f2 = fit_model(data, nominal, f.as_dict(), f.effects, nfev, mask=train)
+        r = f2.y_fit - y
+        errs.append(float(np.sum(np.where(np.isfinite(r), r, 1e6)[test] ** 2)))
+    rms0 = math.sqrt(errs[0] / max(int(test.sum()), 1))
+    return (1.0 - errs[1] / errs[0] if errs[0] > 0 else 0.0), rms0
+
+
+def informative(rms_base_test: float, noise: float) -> bool:
+    """Whether a held-out part can confirm an effect: the model without it must miss there by
+    more than ``HOLDOUT_FLOOR`` noise levels (the rule in :mod:`teleop.diagnose.criterion`)."""
+    return not (noise > 0 and rms_base_test < HOLDOUT_FLOOR * noise)
+
+
+def _ee_start(sig: EESignals, nominal: AxisNominal, current: ModelFit, name: str,
+              fixed_inertia: float, scales: cand.Scales) -> dict[str, float] | None:
+    """Start values from an equation-error fit of the current effects plus ``name``."""
+    effs = current.effects + (name,)
+    if any(e not in EE_EFFECTS for e in effs):
+        return None
+    grids = _ee_grids(scales)
+    base = {e: current.value(f"effect:{e}") for e in current.effects}
+    f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)), fixed_inertia)
+    start = current.as_dict()
+    extra = dict(f.extra)
+    for n, c in zip(f.names, f.coef, strict=True):
+        if n in nominal.terms:
+            start[n] = c
+    for e in effs:
+        if e in extra and e != "stiction":
+            start[f"effect:{e}"] = extra[e]
+        elif e == "sensor_offset":
+            k = f.get("stiffness") + f.get("gravity")
+            start[f"effect:{e}"] = f.get(e) / k if k else 0.0
+        else:
+            start[f"effect:{e}"] = f.get(e)
+    return start
+
+
+def _best_start(data: FitData, nominal: AxisNominal, current: ModelFit, name: str,
+                sig: EESignals, fixed_inertia: float) -> dict[str, float]:
+    """The better of a grid scan from the current fit and an equation-error start."""
+    scan = scan_effect(data, current, name)
+    starts = [{**current.as_dict(), **scan}]
+    ee = _ee_start(sig, nominal, current, name, fixed_inertia, data.scales)
+    if ee is not None:
+        starts.append(ee)
+    if len(starts) == 1:
+        return starts[0]
+    y = data.y
+    best, best_s = math.inf, starts[0]
+    for st in starts:
+        names = tuple(st)
+        r = simulate(names, tuple(st.values()), data) - y
+        rss = float(r @ r) if np.all(np.isfinite(r)) else math.inf
+        if rss < best:
+            best, best_s = rss, st
+    return best_s
+
+
+def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: DiagnoseOptions,
+               names: tuple[str, ...], sig: EESignals, fixed_inertia: float, noise: float
+               ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]]]:
+    current = nom
+    chosen: list[EffectResult] = []
+    ranking: list[tuple[str, float]] = []
+    remaining = list(names)
+    while remaining and len(chosen) < opts.max_effects:
+        rms = math.sqrt(current.rss / current.n)
+        if rms < opts.noise_factor * noise and chosen:
+            break  # what is left is measurement noise
+        if len(names) > opts.screen_above:
+            remaining = list(_screen(sig, nominal, tuple(remaining), fixed_inertia,
+                                     data.scales, opts.screen_top, current))
+        fits: list[tuple[float, str, ModelFit]] = []
+        for name in remaining:
+            try:
+                start = _best_start(data, nominal, current, name, sig, fixed_inertia)
+                f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
+                z_neutral = cand.neutral(name)
+                if f.rss > current.rss and math.isfinite(z_neutral):
+                    # a worse local optimum: start again from the current model itself
+                    f = fit_model(data, nominal, {**current.as_dict(),
+                                                  f"effect:{name}": z_neutral},
+                                  current.effects + (name,), opts.max_nfev)
+            except NUMERIC_FAILURES:
+                continue  # a candidate whose fit fails numerically is disqualified
+            fits.append((_score(current, f, data), name, f))
+        fits.sort(key=lambda x: -x[0])
+        # refine the leading candidates fully before choosing (quick fits rank roughly)
+        refined = []
+        for dbic, name, f in fits[: opts.refine_top]:
+            if dbic >= opts.criterion.min_score:
+                try:
+                    f2 = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
+                    f, dbic = f2, _score(current, f2, data)
+                except NUMERIC_FAILURES:
+                    pass  # keep the quick fit
+            refined.append((dbic, name, f))
+        fits = sorted(refined + fits[opts.refine_top:], key=lambda x: -x[0])
+        if not chosen:
+            ranking = [(n, d) for d, n, _ in fits]
+        accepted = False
+        for dbic, name, f in fits:
+            if dbic < opts.criterion.min_score:
+                break
+            try:
+                gain, rms0 = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
+            except NUMERIC_FAILURES:
+                continue
+            if not crit.judge(current.rss, f.rss, f.y_fit - data.y, f.n_params - current.n_params,
+                              gain, informative(rms0, noise),
+                              criterion=opts.criterion).accepted:
+                continue
+            p, s = _effect_params(name, f, data)
+            chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
+            current = f
+            remaining = [n for n in names if n not in current.effects]
+            accepted = True
+            break
+        if not accepted:
+            break
+    if len(chosen) > 1:
+        current, chosen = _prune(data, nominal, current, chosen, opts)
+        # report every effect's value as it stands in the final (joint) model
+        final = []
+        for e in chosen:
+            p, s = _effect_params(e.name, current, data)
+            final.append(replace(e, params=p, std=s, explanation=cand.explanation(e.name,
+                                                                                 p[0][1])))
+        chosen = final
+    return current, chosen, ranking
+
+
+def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[EffectResult],
+           opts: DiagnoseOptions) -> tuple[ModelFit, list[EffectResult]]:
+    """Backward elimination: drop an effect the others make redundant (delta BIC too small)."""
+    changed = True
+    while changed and len(chosen) > 1:
+        changed = False
+        for e in list(chosen):
+            rest = tuple(n for n in full.effects if n != e.name)
+            start = {k: v for k, v in full.as_dict().items() if k != f"effect:{e.name}"
+                     and not (e.name == "stiction" and k == "stribeck_velocity")}
+            try:
+                reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
+            except NUMERIC_FAILURES:
+                continue  # cannot test this removal: keep the effect
+            if _score(reduced, full, data) < opts.criterion.min_score:
+                chosen = [c for c in chosen if c.name != e.name]
+                full = reduced
+                changed = True
+                break
+    return full, chosen
+
+
+def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
+    return {"dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
+            "actuator_lag": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.2, 0.4),
+            "actuator_saturation": tuple(f * scales.umax for f in (0.3, 0.4, 0.5, 0.6, 0.7,
+                                                                  0.8, 0.9)),
+            "stiction": (0.02 * scales.velocity, 0.05 * scales.velocity,
+                         0.1 * scales.velocity)}
+
+
+def _screen(sig: EESignals, nominal: AxisNominal, names: tuple[str, ...], fixed_inertia: float,
+            scales: cand.Scales, top: int, current: ModelFit | None = None) -> tuple[str, ...]:
+    """Candidates worth an output-error fit: the best ``top`` by equation error (on top of the
+    effects already in ``current``), plus the effects equation error cannot see well (stiction,
+    backlash, series compliance)."""
+    if len(names) <= top:
+        return names
+    grids = _ee_grids(scales)
+    base_eff: dict[str, float] = {}
+    if current is not None:
+        for e in current.effects:
+            if e in EE_EFFECTS:
+                base_eff[e] = current.value(f"effect:{e}")
+    base = ee_fit(sig, nominal, base_eff, fixed_inertia)
+    scored = []
+    for name in names:
+        if name in EE_EFFECTS and name != "stiction":
+            try:
+                f = ee_effect_fit(sig, nominal, base_eff, name, grids.get(name, (1.0,)),
+                                  fixed_inertia)
+            except NUMERIC_FAILURES:
+                continue
+            scored.append((base.bic - f.bic, name))
+    scored.sort(reverse=True)
+    keep = {n for _, n in scored[:top]} | {n for n in names if n not in EE_EFFECTS
+                                           or n == "stiction"}
+    return tuple(n for n in names if n in keep)
