@@ -29,6 +29,14 @@ SCENARIOS: dict[str, tuple[tuple[str, ...], float, int]] = {
                      "links.master_controller.jitter=uniform",
                      "links.master_controller.jitter_s=0.01"), 1.5, 3),
     "two-layer-python-engine": (("hand.sim.engine=python",), 1.0, 4),
+    "two-layer-sum-two-fingers": (("controller.transparency.force_combine=sum",
+                                   "controller.transparency.finger_enable=[true, false, true]",
+                                   "links.master_controller.delay_s=0.2"), 2.0, 5),
+    "two-layer-mean-long-delay": (("controller.transparency.force_combine=mean",
+                                   "links.master_controller.delay_s=0.5",
+                                   "links.master_controller.duplicate=0.1",
+                                   "links.controller_hand.jitter=normal",
+                                   "links.controller_hand.jitter_s=0.005"), 2.0, 6),
 }
 
 
