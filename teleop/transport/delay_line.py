@@ -114,9 +114,9 @@ class DelayLineState:
 
 def _lost(state: DelayLineState, p: DelayParams, i: int) -> tuple[bool, bool | None]:
     """(lost?, new Gilbert state) for message ``i``."""
-    u = _uniform(p.stream, i, 0)
     if p.loss <= 0.0:
         return False, state.bad
+    u = _uniform(p.stream, i, 0)
     if p.loss_model == "bernoulli":
         return u < p.loss, state.bad
     if p.loss >= 1.0:
