@@ -10,10 +10,10 @@ CPU second (best of ``repeats``; ``_wall`` beside them), ``*_over_python`` the r
 package), so what dominates once the physics is fast is a figure, not a guess.
 
 ``reference`` (``teleop bench lockstep --reference DIR``): a source tree of an earlier
-implementation (``git worktree add /tmp/ref dc373eb``) whose lockstep runs the same 10 s on
-both engines in a subprocess, alternating with this tree's runs in the same repetitions, so
-``compiled_lockstep_over_reference_python`` is this tree against the one before it,
-measured side by side (``reference_*`` its own figures).
+implementation (``mkdir /tmp/ref && git archive dc373eb | tar -x -C /tmp/ref``) whose
+lockstep runs the same seconds on both engines in a subprocess, alternating with this tree's
+runs in the same repetitions, so ``compiled_lockstep_over_reference_python`` is this tree
+against the one before it, measured side by side (``reference_*`` its own figures).
 """
 
 from __future__ import annotations

@@ -36,7 +36,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     add_json_option(p)
     p.add_argument("--reference", default=None, metavar="DIR",
                    help="lockstep only: a source tree of an earlier implementation (e.g. "
-                   "`git worktree add /tmp/ref dc373eb`), run side by side with this one")
+                   "`git archive REV | tar -x -C DIR`), run side by side with this one")
     p.set_defaults(run=run)
 
 
