@@ -33,8 +33,9 @@ def _reason(msg: object) -> str:
 def test_one_bad_number_in_any_list_is_caught(bad: float) -> None:
     want = "not_finite" if not math.isfinite(bad) else "out_of_range"
     assert _reason(HandCommand(H, (0.1, bad, 0.2), 0.0)) == want
-    assert _reason(ForceCommand(H, 1.0, (0.1, 5.0, 0.1, 5.0, bad, 5.0))) == want
-    assert _reason(ForceCommand(H, 1.0, (0.1, 5.0, 0.1, bad, 0.1, 5.0))) == want
+    for i in range(6):  # every angle and every stiffness of the model
+        model = tuple(bad if j == i else (0.1, 5.0)[j % 2] for j in range(6))
+        assert _reason(ForceCommand(H, 1.0, model)) == want
     assert _reason(_hand_state(pressure=(1.0,) * 8 + (bad,))) == want
     assert _reason(_hand_state(distal_rad=bad)) == want
     assert _reason(_hand_state(load_units=bad)) == want
