@@ -39,6 +39,7 @@ work of whatever force is displayed (``teleop.control.two_layer``).
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 
 from teleop.control.interface import ControlParams
@@ -75,8 +76,24 @@ def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
     return _force_at(r, p, setpoint_rad(p, q_m))
 
 
+#: (params, the inputs' bytes, energy) of the last :func:`model_energy_j` (one tuple, replaced
+#: whole); a held grasp asks for the same energy at every tick
+_last_energy: tuple[ControlParams | None, bytes, float] = (None, b"", 0.0)
+
+
 def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     """The stored energy of the rendered model at ``q_m``: ``int_0^q F_model`` (see module)."""
+    global _last_energy
+    key = struct.pack("<7d", q_m, *r.contact_rad, *r.stiffness_n_per_rad)  # bit for bit
+    last = _last_energy
+    if last[0] is p and last[1] == key:
+        return last[2]
+    e = _model_energy_j(r, p, q_m)
+    _last_energy = (p, key, e)
+    return e
+
+
+def _model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     on = [i for i in range(3) if p.finger_enable[i] and r.stiffness_n_per_rad[i] > 0.0]
     if not on:
         return 0.0
