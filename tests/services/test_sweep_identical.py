@@ -1,6 +1,9 @@
 """The faster lockstep gives the sweep the same answer: a short direct-control sweep (two grid
-points and one bisection run) matches, row for row, the one recorded on dc373eb, before the
-lockstep was made faster (every JSON key but ``wall_s``; the bracket and the prediction)."""
+points and one bisection run) matches, row for row, the one recorded on main (55896c7) before
+the lockstep was made faster (every JSON key but ``wall_s``; the bracket and the prediction).
+
+Record again only for an intended behaviour change: run the record's ``command`` with
+``--json`` and keep its rows without ``wall_s`` (say so in the commit)."""
 
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ import pytest
 
 from teleop.cli import main
 
-RECORD = json.loads((Path(__file__).parent / "data" / "sweep_direct_dc373eb.json").read_text())
+RECORD = json.loads((Path(__file__).parent / "data" / "sweep_direct_record.json").read_text())
 
 
 def _same(a: object) -> str:
