@@ -222,7 +222,10 @@ _MASTER_COLS = ("t_s", "trigger_position_m", "trigger_velocity_m_s", "operator_f
 
 
 class _Recorder:
-    """Collects rows (one per master tick) of the latest sample of each service."""
+    """Collects rows (one per master tick) of the latest sample of each service.
+
+    The controller's and hand's rows are converted once per (sample, fresh) and copied into
+    every master row that holds them (the hand ticks at 40 Hz, the master at 1 kHz)."""
 
     def __init__(self, n: int) -> None:
         self.n = 0
@@ -230,6 +233,9 @@ class _Recorder:
         self.c = np.full((n, 16), np.nan)
         self.h = np.full((n, 3 * 5 + 27 + 10), np.nan)
         self.audit = np.full((n, 4), np.nan)
+        self._c_key: tuple[object, bool] | None = None
+        self._h_key: tuple[object, bool] | None = None
+        self._c_row = self._h_row = np.empty(0)
 
     def row(self, m: MasterSample, c: ControllerSample | None, h: HandSample | None,
             c_fresh: bool, h_fresh: bool, audit: tuple[float, float, float, float]) -> None:
@@ -237,16 +243,23 @@ class _Recorder:
         self.audit[i] = audit
         self.m[i] = [getattr(m, k) for k in _MASTER_COLS]
         if c is not None:
-            self.c[i] = [*c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
-                         c.sent_j, c.received_j, c.dissipated_j,
-                         c.master_delay_s if c_fresh else np.nan,
-                         c.hand_delay_s if c_fresh else np.nan, c.master_dropped,
-                         c.hand_dropped, 0.0]
+            if self._c_key is None or self._c_key[0] is not c or self._c_key[1] != c_fresh:
+                self._c_key, self._c_row = (c, c_fresh), np.array(
+                    [*c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
+                     c.sent_j, c.received_j, c.dissipated_j,
+                     c.master_delay_s if c_fresh else np.nan,
+                     c.hand_delay_s if c_fresh else np.nan, c.master_dropped,
+                     c.hand_dropped, 0.0], dtype=np.float64)
+            self.c[i] = self._c_row
         if h is not None:
-            self.h[i] = [*h.setpoint_rad, *h.proximal_angle_rad, *h.distal_angle_rad,
-                         *h.motor_angle_rad, *h.setpoint_desired_rad, *h.pressure, h.tank_j,
-                         h.port_in_j, h.port_out_j, h.sent_j, h.received_j, h.dissipated_j,
-                         h.delay_s if h_fresh else np.nan, h.dropped, h.limit_count, 0.0]
+            if self._h_key is None or self._h_key[0] is not h or self._h_key[1] != h_fresh:
+                self._h_key, self._h_row = (h, h_fresh), np.array(
+                    [*h.setpoint_rad, *h.proximal_angle_rad, *h.distal_angle_rad,
+                     *h.motor_angle_rad, *h.setpoint_desired_rad, *h.pressure, h.tank_j,
+                     h.port_in_j, h.port_out_j, h.sent_j, h.received_j, h.dissipated_j,
+                     h.delay_s if h_fresh else np.nan, h.dropped, h.limit_count, 0.0],
+                    dtype=np.float64)
+            self.h[i] = self._h_row
         self.n += 1
 
 
@@ -300,7 +313,7 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     report_every = max(1, n_master // 100)
     try:
         while True:
-            t = min(k * p for k, p in zip(ticks, periods, strict=True))
+            t = min(ticks[0] * periods[0], ticks[1] * periods[1], ticks[2] * periods[2])
             if t > duration_s + 1e-12 or rows.n >= n_master:
                 break
             if t > clock.now_s():
@@ -311,8 +324,8 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
             m_sample: MasterSample | None = None
             c_fresh = h_fresh = False
             for i, s in enumerate(services):
-                if abs(ticks[i] * periods[i] - t) < 1e-12 or ticks[i] * periods[i] < t:
-                    t_i = ticks[i] * periods[i]
+                t_i = ticks[i] * periods[i]
+                if abs(t_i - t) < 1e-12 or t_i < t:
                     ticks[i] += 1
                     if s is None:  # a dead service (fault injection)
                         if i == 0:

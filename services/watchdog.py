@@ -11,7 +11,7 @@ sends), which keeps the energy accounts exact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from teleop.config import TeleopConfig
 
@@ -42,8 +42,8 @@ def watchdog_step(state: WatchdogState, p: WatchdogParams, t_s: float, got_valid
     if got_valid and peer_alive and state.gain >= 1.0 and not state.tripped:
         return WatchdogState(last_valid_t_s=t_s, tripped=False, gain=1.0, trips=state.trips)
     if not p.enabled:
-        return replace(state, last_valid_t_s=t_s if got_valid else state.last_valid_t_s,
-                       tripped=False, gain=1.0)
+        return WatchdogState(last_valid_t_s=t_s if got_valid else state.last_valid_t_s,
+                             tripped=False, gain=1.0, trips=state.trips)
     last = t_s if got_valid else state.last_valid_t_s
     fresh = last is not None and t_s - last <= p.timeout_s
     ok = fresh and peer_alive

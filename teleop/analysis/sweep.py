@@ -216,8 +216,16 @@ def max_stable_delay(runs: Sequence[SweepRun], controller: str,
     return lo, hi
 
 
+def _job_seconds(job: tuple[Any, ...]) -> float:
+    """Simulated seconds of a ``_run_one`` job ``(runner, cfg, point, duration_s, ...)``
+    (0 for anything else)."""
+    if len(job) < 4 or not isinstance(job[2], SweepPoint):
+        return 0.0
+    return point_duration_s(point_config(job[1], job[2]), job[3])
+
+
 class _Pool:
-    """Serial or spawn-process execution of runs, in submission order."""
+    """Serial or spawn-process execution of runs; results in the order of the jobs."""
 
     def __init__(self, workers: int) -> None:
         self.workers = workers
@@ -234,7 +242,11 @@ class _Pool:
                 out.append(fn(*job))
                 done(out[-1])
             return out
-        futures = [self._ex.submit(fn, *job) for job in jobs]
+        # the longest runs first (simulated seconds), so no worker is left with a long run at
+        # the end; each result still goes to its own place, the order of ``jobs``
+        order = sorted(range(len(jobs)), key=lambda i: -_job_seconds(jobs[i]))
+        submitted = {i: self._ex.submit(fn, *jobs[i]) for i in order}
+        futures = [submitted[i] for i in range(len(jobs))]
         results: list[SweepRun] = []
         for fut in futures:
             results.append(fut.result())

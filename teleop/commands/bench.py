@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("bench", help="run a benchmark (JSON figures)")
     p.add_argument("name", help="benchmark: " + ", ".join(sorted(BENCHES)))
     add_json_option(p)
+    p.add_argument("--reference", default=None, metavar="DIR",
+                   help="lockstep only: a source tree of an earlier implementation (e.g. "
+                   "`git archive REV | tar -x -C DIR`), run side by side with this one")
     p.set_defaults(run=run)
 
 
@@ -52,8 +55,15 @@ def run(args: argparse.Namespace) -> int:
     """Run one benchmark and print/write its figures."""
     fn = _load(args.name)
     check_output_path(args.json_path, "JSON")
+    kwargs: dict[str, Any] = {}
+    if getattr(args, "reference", None) is not None:
+        if args.name != "lockstep":
+            raise UserInputError(f"--reference: only for `bench lockstep`, not {args.name!r}")
+        from services.bench_lockstep import check_reference
+
+        kwargs["reference"] = str(check_reference(args.reference))
     info(args, f"bench {args.name}: running...")
-    figures = fn()
+    figures = fn(**kwargs)
     if args.json_path is None:
         for key, value in figures.items():
             print(f"{key}: {value:.6g}" if isinstance(value, float) else f"{key}: {value}")

@@ -62,8 +62,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="jitter scale at every point (default: sweep.jitter_s)")
     p.add_argument("--controllers", default=None, metavar="LIST",
                    help="comma list of controllers (default: sweep.controllers)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="parallel runs (spawned processes; default: sweep.workers)")
+    p.add_argument("--jobs", "--workers", dest="workers", type=int, default=None, metavar="N",
+                   help="parallel runs (spawned processes; default: sweep.workers, whose "
+                   "default 0 means one per core); the results do not depend on N")
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="bisection runs that narrow each controller's largest stable delay "
                    "(default: sweep.refine_steps)")
@@ -220,7 +221,7 @@ def predicted_limits(cfg: TeleopConfig) -> tuple[tuple[tuple[str, float], ...], 
 
 def _run_special(args: argparse.Namespace, cfg: TeleopConfig, controllers: tuple[str, ...],
                  seed: int, workers: int | None) -> int:
-    """``--grid`` or ``--endurance``: lockstep only, all cores unless ``--workers``."""
+    """``--grid`` or ``--endurance``: lockstep only, all cores unless ``--jobs``."""
     if args.mode != "lockstep":
         raise UserInputError("--grid/--endurance: lockstep mode only (--mode live given)")
     workers = workers or os.cpu_count() or 1
@@ -284,8 +285,9 @@ def run(args: argparse.Namespace) -> int:
     jitter = sc.jitter_s if args.jitter is None else args.jitter
     workers = sc.workers if args.workers is None else args.workers
     refine = sc.refine_steps if args.refine is None else args.refine
-    if workers < 1 or refine < 0:
-        raise UserInputError("--workers must be >= 1 and --refine >= 0")
+    if workers < 0 or refine < 0 or (args.workers is not None and args.workers < 1):
+        raise UserInputError("--jobs must be >= 1 and --refine >= 0")
+    workers = workers or os.cpu_count() or 1
     check_output_path(args.json_path, "JSON")  # fail before the runs, not after them
     check_output_path(args.plot, "plot")
     check_output_path(args.rerun, "rerun log")
@@ -294,7 +296,7 @@ def run(args: argparse.Namespace) -> int:
                 or args.jitter is not None):
             raise UserInputError("--grid/--endurance: --delays, --losses, --jitter, --refine "
                                  "and --rerun apply to the delay sweep only")
-        return _run_special(args, cfg, controllers, seed, args.workers)
+        return _run_special(args, cfg, controllers, seed, args.workers or sc.workers)
     if args.mode == "live":
         workers = 1  # real-time runs share the machine; one at a time keeps timing honest
     predicted, notes = predicted_limits(cfg)

@@ -60,6 +60,7 @@ class SweepConfig:
         "config overrides (key=value, applied before --set) that stage the sweep's grasp: one "
         "close onto the object, then a hold whose contact force stays below the trigger's "
         "force limit, so the loop is in its linear range where delay can destabilise it")
-    workers: int = param(2, "lockstep runs in parallel (spawned processes)", lo=1, hi=64)
+    workers: int = param(0, "lockstep runs in parallel (spawned processes; 0 = one per core)",
+                         lo=0, hi=64)
     refine_steps: int = param(5, "bisection runs narrowing each controller's largest stable "
                               "delay at zero loss", lo=0, hi=20)

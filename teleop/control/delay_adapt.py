@@ -157,7 +157,22 @@ def critical_gain(p: DelayAdaptParams, round_trip_s: float) -> float:
         return p.kappa_any_delay
     if round_trip_s >= p.delays_s[-1]:
         return p.kappa_any_delay
-    return float(np.interp(round_trip_s, p.delays_s, p.kappas))
+    memo = _last_gain
+    if memo[0] is p and memo[1] == round_trip_s and memo[2] == math.copysign(1.0, round_trip_s):
+        return memo[3]  # the round trip rarely moves: the same input, the same number
+    k = float(np.interp(round_trip_s, p.delays_s, p.kappas))
+    _set_last_gain((p, round_trip_s, math.copysign(1.0, round_trip_s), k))
+    return k
+
+
+#: (params, round trip, its sign, kappa) of the last :func:`critical_gain` interpolation (one
+#: tuple, replaced whole, so a reader in another thread sees a consistent entry)
+_last_gain: tuple[DelayAdaptParams | None, float, float, float] = (None, math.nan, 0.0, 0.0)
+
+
+def _set_last_gain(entry: tuple[DelayAdaptParams | None, float, float, float]) -> None:
+    global _last_gain
+    _last_gain = entry
 
 
 def target_gain(p: DelayAdaptParams, round_trip_s: float) -> float:

@@ -10,8 +10,6 @@ unstable with delay against a stiff contact (see :mod:`teleop.control.stability_
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.energy_tank import port_work_j, split_work
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
@@ -42,8 +40,10 @@ def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
     q, dq, v = measure_master(s, grip_position_m, dt_s)
     took, gave = split_work(port_work_j(s.force_prev_n, dq))
     led = s.ledger
-    led = replace(led, port_in_j=led.port_in_j + took, port_out_j=led.port_out_j + gave,
-                  tank_j=led.tank_j + took - gave)
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=led.tank_j + took - gave,
+                       port_in_j=led.port_in_j + took, port_out_j=led.port_out_j + gave,
+                       sent_j=led.sent_j, received_j=led.received_j,
+                       dissipated_j=led.dissipated_j)
     f = clip(command.force_n, p.force_max_n) if command is not None else 0.0
     out = MasterOutput(force_n=f, grip_position_m=q, grip_velocity_m_s=v, energy_total_j=0.0,
                        ledger=led, force_desired_n=f, limited=False, tlc_damping_n_s_per_m=0.0)
@@ -62,7 +62,10 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s)
     seq = s.seq + 1
     fc, hc = make_commands(p, seq, t_s, force, 0.0, sp, 0.0)
-    ns = replace(s, transparency=ts, seq=seq)
+    ns = ControllerStoreState(ledger=s.ledger, rx_master=s.rx_master, rx_hand=s.rx_hand,
+                              sent_to_master_j=s.sent_to_master_j,
+                              sent_to_hand_j=s.sent_to_hand_j, transparency=ts, seq=seq,
+                              adapt=s.adapt, model_since=s.model_since)
     return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=s.ledger,
                                 max_pressure=mp, force_desired_n=raw)
 
@@ -80,8 +83,10 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     y = desired_setpoints(command, y_prev)
     e = spring_energy_j(y, x, k, tmax) - spring_energy_j(y_prev, x, k, tmax) - d_j
     led = s.ledger
-    led = replace(led, port_in_j=led.port_in_j + max(-e, 0.0),
-                  port_out_j=led.port_out_j + max(e, 0.0), tank_j=led.tank_j - e)
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=led.tank_j - e,
+                       port_in_j=led.port_in_j + max(-e, 0.0),
+                       port_out_j=led.port_out_j + max(e, 0.0), sent_j=led.sent_j,
+                       received_j=led.received_j, dissipated_j=led.dissipated_j)
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=0.0, ledger=led,
                      setpoint_desired_rad=y, limited=False,

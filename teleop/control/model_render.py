@@ -39,10 +39,11 @@ work of whatever force is displayed (``teleop.control.two_layer``).
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 
 from teleop.control.interface import ControlParams
-from teleop.control.transparency_layer import combine, grip_to_setpoints
+from teleop.control.transparency_layer import grip_to_setpoints
 
 Triple = tuple[float, float, float]
 _ENVELOPE_STEPS = 24
@@ -75,8 +76,24 @@ def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
     return _force_at(r, p, setpoint_rad(p, q_m))
 
 
+#: (params, the inputs' bytes, energy) of the last :func:`model_energy_j` (one tuple, replaced
+#: whole); a held grasp asks for the same energy at every tick
+_last_energy: tuple[ControlParams | None, bytes, float] = (None, b"", 0.0)
+
+
 def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     """The stored energy of the rendered model at ``q_m``: ``int_0^q F_model`` (see module)."""
+    global _last_energy
+    key = struct.pack("<7d", q_m, *r.contact_rad, *r.stiffness_n_per_rad)  # bit for bit
+    last = _last_energy
+    if last[0] is p and last[1] == key:
+        return last[2]
+    e = _model_energy_j(r, p, q_m)
+    _last_energy = (p, key, e)
+    return e
+
+
+def _model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     on = [i for i in range(3) if p.finger_enable[i] and r.stiffness_n_per_rad[i] > 0.0]
     if not on:
         return 0.0
@@ -85,16 +102,45 @@ def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
         return 0.0
     n = _ENVELOPE_STEPS
     h = (t_end - t0) / n
-    f = [_force_at(r, p, t0 + j * h) for j in range(n + 1)]
+    terms, how, f_max = _terms(r, p), p.force_combine, p.force_max_n
+    if how == "max" and len(terms) == 3:  # the default, unrolled: same operations and order
+        (k0, c0), (k1, c1), (k2, c2) = terms
+        f = []
+        for j in range(n + 1):
+            th = t0 + j * h
+            x = max(k0 * max(th - c0, 0.0), k1 * max(th - c1, 0.0), k2 * max(th - c2, 0.0))
+            f.append(min(max(x, 0.0), f_max))
+    else:
+        f = [_force_of(terms, how, f_max, t0 + j * h) for j in range(n + 1)]
     return h * (sum(f) - 0.5 * (f[0] + f[-1])) / map_gain_rad_per_m(p)
+
+
+def _terms(r: RenderState, p: ControlParams) -> list[tuple[float, float]]:
+    """``(stiffness, contact angle)`` of every enabled finger, in finger order."""
+    return [(k, c) for k, c, on in zip(r.stiffness_n_per_rad, r.contact_rad,
+                                       p.finger_enable[:3], strict=True) if on]
+
+
+def _force_of(terms: list[tuple[float, float]], how: str, f_max: float, theta: float) -> float:
+    """``F_model`` at set-point ``theta`` from :func:`_terms`: the enabled fingers' forces
+    combined as :func:`~teleop.control.transparency_layer.combine` does (same operations in
+    the same order, so the same float), clipped at ``f_max``."""
+    if not terms:
+        return min(0.0, f_max)
+    per = [k * max(theta - c, 0.0) for k, c in terms]
+    if how == "max":
+        x = max(per)
+    elif how == "sum":
+        x = sum(per)
+    else:
+        x = sum(per) / len(per)
+    return min(max(x, 0.0), f_max)
 
 
 def _force_at(r: RenderState, p: ControlParams, theta: float) -> float:
     """``F_model`` with every enabled finger at set-point ``theta``, clipped at the trigger's
     largest force."""
-    per = tuple(k * max(theta - c, 0.0) for k, c in zip(r.stiffness_n_per_rad, r.contact_rad,
-                                                         strict=True))
-    return min(max(combine(per, p), 0.0), p.force_max_n)  # type: ignore[arg-type]
+    return _force_of(_terms(r, p), p.force_combine, p.force_max_n, theta)
 
 
 def damping_n_s_per_m(r: RenderState, p: ControlParams, periods: float, dt_s: float) -> float:
@@ -133,9 +179,10 @@ def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m:
     new = r0
     for a in _ALPHAS:
         cand = _mix(r0, c_t, k_t, a * a0)  # type: ignore[arg-type]
+        if not abs(model_force_n(cand, p, q_m) - f0) <= rate_n_per_s * dt_s * (1.0 + 1e-9):
+            continue  # (the energy only for a candidate the rate limit lets through)
         e = model_energy_j(cand, p, q_m)
-        if (abs(model_force_n(cand, p, q_m) - f0) <= rate_n_per_s * dt_s * (1.0 + 1e-9)
-                and (e <= budget_j or e <= e0)):
+        if e <= budget_j or e <= e0:
             new = cand
             break
     phase = min(sum(new.stiffness_n_per_rad) / total, 1.0) if total > 0.0 else 0.0

@@ -21,8 +21,6 @@ capped at ``tank.max_j`` (the excess is dissipated): the observed energy cannot 
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from teleop.control.energy_channel import EnergyLedger, receive_total
 from teleop.control.energy_tank import (
     cap_tank,
@@ -90,8 +88,10 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     rx_h, inc_h = receive_total(s.rx_hand, hand.header.energy_total_j if hand else None)
     rho = p.energy_scale
     led = s.ledger  # in hand-side joules: relays exactly what it credits
-    led = replace(led, received_j=led.received_j + rho * inc_m + inc_h,
-                  sent_j=led.sent_j + rho * inc_m + inc_h)
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=led.tank_j, port_in_j=led.port_in_j,
+                       port_out_j=led.port_out_j, sent_j=led.sent_j + rho * inc_m + inc_h,
+                       received_j=led.received_j + rho * inc_m + inc_h,
+                       dissipated_j=led.dissipated_j)
     ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s)
     seq = s.seq + 1
     # power scaling: the hand's budget counts master joules times rho, and vice versa

@@ -251,8 +251,10 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     to_h = p.controller_split * out
     to_m = (out - to_h) / rho
     store -= out
-    led = replace(led, tank_j=store, received_j=led.received_j + rho * inc_m + inc_h,
-                  sent_j=led.sent_j + out, dissipated_j=led.dissipated_j + diss)
+    led = EnergyLedger(initial_j=led.initial_j, tank_j=store, port_in_j=led.port_in_j,
+                       port_out_j=led.port_out_j, sent_j=led.sent_j + out,
+                       received_j=led.received_j + rho * inc_m + inc_h,
+                       dissipated_j=led.dissipated_j + diss)
     adapt = step_delay_adapt(s.adapt, p.delay_adapt, master, hand, t_s, dt_s)
     ts, sp, force, mp, raw = transparency_commands(s, p, master, hand, dt_s, adapt.gain)
     seq = s.seq + 1

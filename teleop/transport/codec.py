@@ -100,6 +100,12 @@ def encode(msg: Message) -> bytes:
 # ----------------------------------------------------------------------------- decode
 
 def _num(v: Any, name: str, lo: float, hi: float) -> float:
+    if type(v) is float and lo <= v <= hi:  # the valid case, at once (NaN fails the test)
+        return v
+    return _num_checked(v, name, lo, hi)
+
+
+def _num_checked(v: Any, name: str, lo: float, hi: float) -> float:
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise DecodeError("bad_type", f"{name} must be a number, got {type(v).__name__}")
     x = float(v) if not isinstance(v, int) or abs(v) < 2**53 else math.inf
@@ -118,7 +124,20 @@ def _list(v: Any, name: str, n: int) -> list[Any]:
     return v
 
 
+def _floats_within(v: Any, n: int, lo: float, hi: float) -> bool:
+    """Whether ``v`` is a list of ``n`` floats, each within [lo, hi] (so the checked path
+    would accept it unchanged)."""
+    if type(v) is not list or len(v) != n:
+        return False
+    for x in v:  # noqa: SIM110 (a plain loop: faster than all() over a generator)
+        if type(x) is not float or not lo <= x <= hi:
+            return False
+    return True
+
+
 def _nums(v: Any, name: str, n: int, rng: tuple[float, float]) -> tuple[float, ...]:
+    if _floats_within(v, n, rng[0], rng[1]):
+        return tuple(v)
     return tuple(_num(x, f"{name}[{i}]", *rng) for i, x in enumerate(_list(v, name, n)))
 
 
@@ -139,6 +158,13 @@ def _header(w: list[Any]) -> Header:
 
 
 def _finger(v: Any, name: str) -> FingerState:
+    if (type(v) is list and len(v) == _FINGER_FIELDS
+            and _floats_within(v[:3], 3, *FINGER_ANGLE_RANGE_RAD)
+            and type(v[3]) is float and LOAD_RANGE_UNITS[0] <= v[3] <= LOAD_RANGE_UNITS[1]
+            and _floats_within(v[4], N_PRESSURE, *PRESSURE_RANGE)
+            and type(v[5]) is list and len(v[5]) == N_PRESSURE
+            and all(type(c) is bool for c in v[5])):  # valid: the checked path's result
+        return FingerState(v[0], v[1], v[2], v[3], tuple(v[4]), tuple(v[5]))
     f = _list(v, name, _FINGER_FIELDS)
     contact = _list(f[5], f"{name}.contact", N_PRESSURE)
     if not all(isinstance(c, bool) for c in contact):
@@ -197,6 +223,13 @@ def _flag(v: Any, name: str) -> bool:
 
 def _model(v: Any, name: str, stiffness: tuple[float, float]) -> tuple[float, ...]:
     """``(contact_rad, stiffness)`` per finger, flattened; stiffness never negative."""
+    lo_a, hi_a = FINGER_ANGLE_RANGE_RAD
+    lo_k, hi_k = stiffness
+    if (type(v) is list and len(v) == 2 * N_FINGERS
+            and all(type(x) is float for x in v)
+            and lo_a <= v[0] <= hi_a and lo_a <= v[2] <= hi_a and lo_a <= v[4] <= hi_a
+            and lo_k <= v[1] <= hi_k and lo_k <= v[3] <= hi_k and lo_k <= v[5] <= hi_k):
+        return tuple(v)
     vals = _list(v, name, 2 * N_FINGERS)
     return tuple(_num(x, f"{name}[{i}]", *(FINGER_ANGLE_RANGE_RAD if i % 2 == 0 else stiffness))
                  for i, x in enumerate(vals))

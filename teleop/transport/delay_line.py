@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from teleop.config.transport import LinkConfig
 
@@ -114,9 +114,9 @@ class DelayLineState:
 
 def _lost(state: DelayLineState, p: DelayParams, i: int) -> tuple[bool, bool | None]:
     """(lost?, new Gilbert state) for message ``i``."""
-    u = _uniform(p.stream, i, 0)
     if p.loss <= 0.0:
         return False, state.bad
+    u = _uniform(p.stream, i, 0)
     if p.loss_model == "bernoulli":
         return u < p.loss, state.bad
     if p.loss >= 1.0:
@@ -158,34 +158,48 @@ def delay_line_push(state: DelayLineState, params: DelayParams, payload: bytes,
     i = state.n_pushed
     lost, bad = _lost(state, params, i)
     if lost:
-        return replace(state, n_pushed=i + 1, n_lost=state.n_lost + 1, bad=bad)
+        return DelayLineState(state.pending, i + 1, state.n_lost + 1, state.n_duplicated,
+                              state.n_delivered, bad, state.last_release_t_s,
+                              state.delay_sum_s, state.delay_max_s)
     copies = [(_sample_delay(params, i, 2), False)]
     if params.duplicate > 0.0 and _uniform(params.stream, i, 1) < params.duplicate:
         copies.append((_sample_delay(params, i, 4), True))
-    pending = list(state.pending)
+    pending = state.pending
     last = state.last_release_t_s
     for k, (d, dup) in enumerate(copies):
         release = t_s + d
         if not params.reorder:
             release = max(release, last)
         last = max(last, release)
-        bisect.insort(pending, Pending(release, 2 * i + k, t_s, payload, dup), key=_key)
-    return replace(state, pending=tuple(pending), n_pushed=i + 1, bad=bad,
-                   n_duplicated=state.n_duplicated + len(copies) - 1, last_release_t_s=last)
+        entry = Pending(release, 2 * i + k, t_s, payload, dup)
+        if not pending or _key(pending[-1]) <= _key(entry):  # the common case: in order
+            pending = (*pending, entry)
+        else:
+            ordered = list(pending)
+            bisect.insort(ordered, entry, key=_key)
+            pending = tuple(ordered)
+    return DelayLineState(pending, i + 1, state.n_lost, state.n_duplicated + len(copies) - 1,
+                          state.n_delivered, bad, last, state.delay_sum_s, state.delay_max_s)
+
+
+def _release_t(e: Pending) -> float:
+    return e.release_t_s
 
 
 def delay_line_pop_due(state: DelayLineState,
                        t_s: float) -> tuple[DelayLineState, list[Delivered]]:
     """Release every message due at ``t_s`` (in release order) with its achieved delay."""
-    n = bisect.bisect_right(state.pending, t_s + TIME_EPS_S, key=lambda e: e.release_t_s)
-    if n == 0:
+    pending = state.pending
+    if not pending or pending[0].release_t_s > t_s + TIME_EPS_S:
         return state, []
+    n = bisect.bisect_right(pending, t_s + TIME_EPS_S, key=_release_t)
     out = [Delivered(e.payload, e.sent_t_s, e.release_t_s, t_s, t_s - e.sent_t_s, e.duplicate)
-           for e in state.pending[:n]]
+           for e in pending[:n]]
     delays = [d.delay_s for d in out]
-    return replace(state, pending=state.pending[n:], n_delivered=state.n_delivered + n,
-                   delay_sum_s=state.delay_sum_s + sum(delays),
-                   delay_max_s=max(state.delay_max_s, *delays)), out
+    return DelayLineState(pending[n:], state.n_pushed, state.n_lost, state.n_duplicated,
+                          state.n_delivered + n, state.bad, state.last_release_t_s,
+                          state.delay_sum_s + sum(delays),
+                          max(state.delay_max_s, *delays)), out
 
 
 def next_release_s(state: DelayLineState) -> float | None:

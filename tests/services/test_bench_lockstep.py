@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from services.bench_lockstep import bench_lockstep
+from teleop.cli import main
 
 
 def test_bench_lockstep_reports_both_engines_and_where_the_time_goes() -> None:
@@ -17,3 +20,24 @@ def test_bench_lockstep_reports_both_engines_and_where_the_time_goes() -> None:
     assert sum(shares.values()) == pytest.approx(1.0)
     assert shares["profile_share_transport"] > 0.0 and shares["profile_share_control"] > 0.0
     assert all(isinstance(v, float) for v in fig.values())
+
+
+@pytest.mark.slow  # two subprocesses, each loading numba and the compiled engine
+def test_bench_lockstep_runs_a_reference_tree_side_by_side() -> None:
+    """``--reference DIR``: the reference tree's lockstep (here this very tree, in a
+    subprocess) alternates with this one's; ratios are this tree over the reference."""
+    tree = Path(__file__).resolve().parents[2]
+    fig = bench_lockstep(sim_time_s=0.3, repeats=1, reference=str(tree))
+    for eng in ("python", "compiled"):
+        ref = fig[f"reference_{eng}_lockstep_realtime_factor"]
+        assert ref > 0.0
+        assert fig[f"compiled_lockstep_over_reference_{eng}"] == pytest.approx(
+            fig["compiled_lockstep_realtime_factor"] / ref)
+
+
+def test_bench_reference_must_be_a_source_tree(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "lockstep", "--reference", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--reference" in err[0] and "not a source tree" in err[0]
+    assert main(["bench", "sim", "--reference", str(tmp_path)]) == 2
