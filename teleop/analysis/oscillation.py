@@ -28,7 +28,10 @@ Verdict
     and at least one in its late half (medians over the segments; a ramp, a step or an
     overshooting settle swings at most twice); *growing*: late amplitude above the threshold and
     :attr:`OscillationCriteria.growth_ratio` times the early one, with
-    :attr:`OscillationCriteria.min_reversals_growing` swings.
+    :attr:`OscillationCriteria.min_reversals_growing` swings.  Either needs the peak
+    frequency to repeat :attr:`OscillationCriteria.min_cycles` times within a segment (a
+    0.08 Hz "swing" in a 3 s hold is a settle in two steps, not an oscillation that can be
+    seen there).
 """
 
 from __future__ import annotations
@@ -59,6 +62,7 @@ class OscillationCriteria:
     band_fraction: float = 0.9  # swings count through +-band_fraction x threshold
     rate_hz: float = 100.0
     min_segment_s: float = 0.6
+    min_cycles: float = 1.5  # an oscillation must repeat within its segment to be one
     highpass_hz: float = 1.0  # fallback without analysis segments
     hf_hz: float = 5.0
 
@@ -231,8 +235,11 @@ def analyse_oscillation(name: str, t_s: Array, x: Array,
     n_rev = int(np.median([reversals(h, band) for h in full]))
     n_late = int(np.median([reversals(h, band) for h in late]))
     freq, hf = _peak_hz(late, dt, c.hf_hz)
+    # cycles of the peak frequency a segment holds: a swing slower than that (a settle in two
+    # steps, a drift) cannot be told from a transient in this window
+    cycles = freq * dt * float(np.median([len(s) for s in segs])) if math.isfinite(freq) else 0.0
     state = "none"
-    if amp_late > threshold and n_late >= 1:
+    if amp_late > threshold and n_late >= 1 and cycles >= c.min_cycles:
         if amp_late > c.growth_ratio * amp_early and n_rev >= c.min_reversals_growing:
             state = "growing"
         elif (amp_late >= c.decay_ratio * amp_early and n_rev >= c.min_reversals

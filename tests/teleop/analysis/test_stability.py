@@ -274,3 +274,25 @@ def test_tracking_in_the_hold_is_judged_on_its_steady_half() -> None:
     assert tracking_hold_rad(s) == pytest.approx(0.05, abs=0.002)
     assert classify_run(s).tracking_hold_rad == pytest.approx(0.05, abs=0.002)
     assert math.isnan(tracking_hold_rad(run(finger, setpoint_rad=sp, settle_s=0.0)))
+
+
+def test_a_settle_in_two_steps_is_not_an_oscillation_but_a_cycle_on_it_is() -> None:
+    """The grid's relaxed operator on the block at 200 ms: after the touch the finger settles,
+    the contact model's fit replaces its prior (the operator is pushed back a little), and
+    the finger settles again - monotone, but a line through the 3 s hold leaves + - + - +,
+    which read as a 0.08 Hz "sustained" swing."""
+    from teleop.analysis.oscillation import OscillationCriteria
+
+    seg = ((2.0, 5.0),)
+    # finger 1 of that run, 0.25 s means from 1.75 s on (lockstep, seed of the grid point)
+    at = np.arange(1.875, 5.2, 0.25)
+    mean = [0.6107, 0.5619, 0.5225, 0.5014, 0.4906, 0.4819, 0.4517, 0.4249, 0.4063, 0.3955,
+            0.3899, 0.3890, 0.3890, 0.3890]
+    settle = np.interp(T, at[:len(mean)], mean)
+    assert osc(settle, 0.005, seg).state == "none"
+    # the old rule (no cycle requirement) called it sustained
+    mutant = OscillationCriteria(min_cycles=0.0)
+    assert analyse_oscillation("x", T, settle, seg, 0.005, mutant).state == "sustained"
+    # a real cycle on the same settle, 1.2 Hz (3.6 cycles in the hold), is still caught
+    o = osc(settle + 0.02 * np.sin(2 * np.pi * 1.2 * T), 0.005, seg)
+    assert o.state == "sustained" and o.frequency_hz == pytest.approx(1.2, rel=0.15)
