@@ -110,6 +110,12 @@ def _median(values: Sequence[float]) -> float:
     return statistics.median(vals) if vals else math.nan
 
 
+def _worst_unstable_index(run: SweepRun) -> float:
+    """The largest amplitude-over-threshold among the run's *unstable* oscillations (-1: none;
+    a slow drift can have a larger index and still not be an oscillation)."""
+    return max((o.index for o in run.metrics.oscillations if o.unstable), default=-1.0)
+
+
 def format_grid(result: SweepResult) -> str:
     """One line per controller x operator x object: stable/passive shares, felt force ratio,
     force and tracking errors, the worst oscillation."""
@@ -120,10 +126,11 @@ def format_grid(result: SweepResult) -> str:
     for r in result.runs:
         groups.setdefault((r.point.controller, r.point.operator, r.point.object), []).append(r)
     for (c, op, ob), runs in groups.items():
-        worst = max(runs, key=lambda r: r.metrics.oscillation_index)
-        w = max(worst.metrics.oscillations, key=lambda o: o.index, default=None)
+        worst = max(runs, key=_worst_unstable_index)
+        w = max((o for o in worst.metrics.oscillations if o.unstable), key=lambda o: o.index,
+                default=None)
         osc = (f"{w.name} {w.amplitude:.3g} @ {w.frequency_hz:.2f} Hz "
-               f"({worst.point.delay_s * 1000:.0f} ms)" if w and w.unstable else "-")
+               f"({worst.point.delay_s * 1000:.0f} ms)" if w else "-")
         lines.append(
             f"{c:<10} {op:<8} {ob:<15} {_share(runs, 'stable'):>7} "
             f"{_share(runs, 'passive'):>7} {_share(runs, 'passive_ledger'):>7} "
