@@ -32,6 +32,7 @@ import struct
 import sys
 import threading
 from collections.abc import Iterator, Mapping, Sequence
+from typing import Any
 
 import zenoh
 
@@ -107,7 +108,7 @@ class ZenohBus:
                  drop_stale: bool = True, gil_switch_interval_s: float | None = 1e-4,
                  extra_config: Mapping[str, str] | None = None,
                  energy_jump_max_j: float = math.inf,
-                 seq_jump_max: int | None = None) -> None:
+                 seq_jump_max: int | None = None, announce: bool = True) -> None:
         self.role = check_role(role)
         if gil_switch_interval_s is not None and sys.getswitchinterval() > gil_switch_interval_s:
             sys.setswitchinterval(gil_switch_interval_s)
@@ -147,13 +148,23 @@ class ZenohBus:
             self._subscribers = [
                 self._session.declare_subscriber(data_key(session, name), self._on_data(name))
                 for name in self._inboxes]
-            self._token = (self._session.liveliness().declare_token(liveliness_key(session, role))
-                           if zcfg.liveliness else None)
+            self._liveliness = zcfg.liveliness
+            self._token: Any = None
+            if announce:
+                self.announce()
             self._live_sub = self._session.liveliness().declare_subscriber(
                 liveliness_pattern(session), self._on_liveliness, history=True)
         except BaseException:
             self._session.close()
             raise
+
+    def announce(self) -> None:
+        """Declare this service's liveliness token (once): peers take it as "ready to tick".
+        ``announce=False`` at construction defers it, so a service can finish its slow set-up
+        after opening the bus without its peers starting on it."""
+        if self._token is None and self._liveliness:
+            self._token = self._session.liveliness().declare_token(
+                liveliness_key(self.session_name, self.role))
 
     def _open_error(self, exc: Exception) -> ConfigError:
         """A one-line user error for a zenoh session that cannot be set up."""
