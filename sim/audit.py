@@ -5,9 +5,11 @@ never from controller code, so a controller's own energy books can be checked ag
 
 The object is the compliant body of :mod:`sim.contact`: along each pad's contact normal it
 pushes back with ``k s d + c s d'`` (``d`` the penetration depth, ``s`` the engaged fraction
-of the pad, never a pull).  The energy it takes from a finger over a physics step in which
-the depth goes from ``d0`` to ``d1`` is the force times the depth change: trapezoidal in the
-elastic part (exact for the linear spring), the damper at the mean rate ``(d1 - d0) / dt``.
+of the pad, never a pull), plus ``k_core s (d - d_core)`` past its rigid core's depth. The
+energy it takes from a finger over a physics step in which the depth goes from ``d0`` to
+``d1`` is the force times the depth change: trapezoidal in the elastic part on each side of
+the core's depth (exact for this piecewise-linear spring), the damper at the mean rate ``(d1
+- d0) / dt``.
 Positive work is energy delivered to the environment, negative work energy taken from it
 (the object's springs pushing the finger back).
 
@@ -22,7 +24,7 @@ from __future__ import annotations
 
 import math
 
-from sim.contact import ContactObject, pad_contact
+from sim.contact import ContactObject, mean_spring_force, pad_contact
 from sim.params import FingerParams
 from sim.readout import distal_origin
 from sim.state import FingerState
@@ -54,9 +56,9 @@ def _pad_work(s0: float, d0: float, s1: float, d1: float, obj: ContactObject,
               dt_s: float) -> float:
     if d0 <= 0.0 and d1 <= 0.0:
         return 0.0
-    k, c = obj.stiffness_n_per_m, obj.damping_n_s_per_m
+    c = obj.damping_n_s_per_m
     dd = d1 - d0
-    elastic = 0.5 * (k * s0 * d0 + k * s1 * d1)
+    elastic = mean_spring_force(obj, s0, d0, s1, d1)
     damping = c * 0.5 * (s0 + s1) * dd / dt_s if dt_s > 0.0 else 0.0
     force = max(elastic + damping, 0.0)
     return force * dd

@@ -57,7 +57,7 @@ def pack_params(p: FingerParams) -> tuple[np.ndarray, np.ndarray]:
 def pack_object(obj: ContactObject) -> np.ndarray:
     """The object array ``o``."""
     return np.array([_KINDS[obj.kind], obj.x_m, obj.y_m, obj.radius_m, obj.stiffness_n_per_m,
-                     obj.damping_n_s_per_m])
+                     obj.damping_n_s_per_m, obj.core_depth_m, obj.core_stiffness_n_per_m])
 
 
 def pack_effects(eff: EffectSet) -> np.ndarray:

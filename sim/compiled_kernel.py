@@ -14,7 +14,8 @@ Layouts (indices are the ``X_*``, ``C_*``, ``K_*``, ``O_*``, ``E_*`` constants):
   limit (the command in force, after any delay: the delay line stays in Python);
 * constants ``k`` (see :func:`sim.compiled.pack_params`) and the damping pieces ``dsegs``
   (rows of upper input bound, u0, d0, exponent);
-* object ``o`` (6): kind (0 none, 1 cylinder, 2 block), x, y, radius, stiffness, damping;
+* object ``o`` (8): kind (0 none, 1 cylinder, 2 block), x, y, radius, stiffness, damping, core
+  depth, core stiffness;
 * effects ``e`` (12): the fields of ``teleop.effects.EffectSet`` in their order.
 
 Every function is ``@njit(cache=True)``: compiled once, then loaded from numba's disk cache
@@ -41,6 +42,31 @@ N_K = 33
  E_NONLIN, E_GRAVITY) = range(12)
 KIND_NONE, KIND_CYLINDER, KIND_BLOCK = 0.0, 1.0, 2.0
 
+
+@njit(cache=True)
+def pad_spring(o: np.ndarray, scale: float, depth: float) -> tuple[float, float]:
+    """``sim.contact.pad_spring`` over the object array."""
+    ke = o[4] * scale
+    force = ke * depth
+    if depth > o[6]:
+        kc = o[7] * scale
+        force += kc * (depth - o[6])
+        ke += kc
+    return force, ke
+
+
+
+@njit(cache=True)
+def mean_spring_force(o: np.ndarray, s0: float, d0: float, s1: float, d1: float) -> float:
+    """``sim.contact.mean_spring_force`` over the object array."""
+    f0 = pad_spring(o, s0, d0)[0]
+    f1 = pad_spring(o, s1, d1)[0]
+    dc = o[6]
+    if (d0 - dc) * (d1 - dc) >= 0.0:
+        return 0.5 * (f0 + f1)
+    a = (dc - d0) / (d1 - d0)
+    fc = pad_spring(o, s0 + a * (s1 - s0), dc)[0]
+    return 0.5 * ((f0 + fc) * a + (fc + f1) * (1.0 - a))
 
 @njit(cache=True)
 def pad_contact(o: np.ndarray, cphi: float, sphi: float, ax: float, ay: float, bx: float,

@@ -14,7 +14,17 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.compiled_kernel import K_LD, K_PADSTART, K_PO, K_PROX, K_SEG, X_FLEX, X_PHI, pad_contact
+from sim.compiled_kernel import (
+    K_LD,
+    K_PADSTART,
+    K_PO,
+    K_PROX,
+    K_SEG,
+    X_FLEX,
+    X_PHI,
+    mean_spring_force,
+    pad_contact,
+)
 from sim.compiled_step import advance
 
 
@@ -69,10 +79,9 @@ def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray) -> tuple[float, floa
 def _pad_work(s0: float, d0: float, s1: float, d1: float, o: np.ndarray, dt: float) -> float:
     if d0 <= 0.0 and d1 <= 0.0:
         return 0.0
-    kc = o[4]
     cc = o[5]
     dd = d1 - d0
-    elastic = 0.5 * (kc * s0 * d0 + kc * s1 * d1)
+    elastic = mean_spring_force(o, s0, d0, s1, d1)
     damping = cc * 0.5 * (s0 + s1) * dd / dt if dt > 0.0 else 0.0
     force = max(elastic + damping, 0.0)
     return force * dd

@@ -63,6 +63,7 @@ from sim.compiled_kernel import (
     motor_effort,
     motor_friction,
     pad_contact,
+    pad_spring,
 )
 
 
@@ -149,11 +150,11 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
         if depth > 0.0:
             cx_ = ax0 + tt * (prox_len - ax0)
             jn = -po * nx + cx_ * ny
-            ke = o[4] * scale
+            fe, ke = pad_spring(o, scale, depth)
             ce = o[5] * scale
-            force = ke * depth - ce * jn * v_phi
+            force = fe - ce * jn * v_phi
             if force > 0.0:
-                f_phi += ke * depth * jn
+                f_phi += fe * jn
                 k_phi += ke * jn * jn
                 c_phi += ce * jn * jn
                 pc_n = force
@@ -173,11 +174,11 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
             vn = jn_phi * v_phi
             for i in range(n):
                 vn += jns[i] * fvel[i]
-            ke = o[4] * scale
+            fe, ke = pad_spring(o, scale, depth)
             ce = o[5] * scale
-            force = ke * depth - ce * vn
+            force = fe - ce * vn
             if force > 0.0:
-                fk = ke * depth
+                fk = fe
                 f_phi += fk * jn_phi - ce * jn_phi * (vn - jn_phi * v_phi)
                 k_phi += ke * jn_phi * jn_phi
                 c_phi += ce * jn_phi * jn_phi

@@ -3,10 +3,13 @@
 The finger lives in its own plane: x along the finger at rest (the palm normal), +y towards the
 side it curls to; the base axle is the origin.  A ``cylinder`` is a circle of ``radius_m``
 centred at (x_m, y_m); a ``block`` is the half-plane y >= y_m (a flat face parallel to the
-finger at rest; x_m is not used).  Contact is a compliant (spring ``stiffness_n_per_m`` +
-damper ``damping_n_s_per_m``) normal force on each link's pad.  A cylinder touches a pad at
-one point; a block presses a pad as a Winkler foundation (stiffness spread uniformly along
-the pad), whose resultant acts at the centroid of the pressed part.
+finger at rest; x_m is not used). Contact is a compliant (spring ``stiffness_n_per_m`` +
+damper ``damping_n_s_per_m``) normal force on each link's pad; pressed deeper than
+``core_depth_m`` a pad meets the object's rigid core and ``core_stiffness_n_per_m`` adds to
+the spring (``pad_spring``), so the servo's full torque cannot push a finger through the
+object. A cylinder touches a pad at one point; a block presses a pad as a Winkler foundation
+(stiffness spread uniformly along the pad), whose resultant acts at the centroid of the
+pressed part.
 
 Pressure: each link's contact force lands at a point along the link; every sensor of that link
 reads ``pressure_per_n * F * kernel(distance)``, a narrow Gaussian (the two sensors nearest a
@@ -33,6 +36,8 @@ class ContactObject:
     radius_m: float = 0.02
     stiffness_n_per_m: float = 2000.0
     damping_n_s_per_m: float = 5.0
+    core_depth_m: float = 0.012
+    core_stiffness_n_per_m: float = 2e5
 
 
 NO_OBJECT = ContactObject()
@@ -42,8 +47,37 @@ def contact_object_from_config(cfg: ObjectConfig) -> ContactObject:
     """The contact object described by the config section ``hand.sim.object``."""
     return ContactObject(kind=cfg.kind, x_m=cfg.x_m, y_m=cfg.y_m, radius_m=cfg.radius_m,
                          stiffness_n_per_m=cfg.stiffness_n_per_m,
-                         damping_n_s_per_m=cfg.damping_n_s_per_m)
+                         damping_n_s_per_m=cfg.damping_n_s_per_m,
+                         core_depth_m=cfg.core_depth_m,
+                         core_stiffness_n_per_m=cfg.core_stiffness_n_per_m)
 
+
+def pad_spring(obj: ContactObject, scale: float, depth_m: float) -> tuple[float, float]:
+    """(elastic force N, tangent stiffness N/m) of a pad ``depth_m`` deep, ``scale`` engaged:
+    the skin's spring, plus the core's once ``core_depth_m`` is passed."""
+    ke = obj.stiffness_n_per_m * scale
+    force = ke * depth_m
+    if depth_m > obj.core_depth_m:
+        kc = obj.core_stiffness_n_per_m * scale
+        force += kc * (depth_m - obj.core_depth_m)
+        ke += kc
+    return force, ke
+
+
+
+
+def mean_spring_force(obj: ContactObject, s0: float, d0: float, s1: float, d1: float) -> float:
+    """The pad spring's mean force as the depth goes d0 -> d1 (the engaged fraction s0 -> s1
+    linearly): trapezoidal on each side of the core's depth, so its product with d1 - d0 is
+    the spring's exact work at a constant fraction."""
+    f0 = pad_spring(obj, s0, d0)[0]
+    f1 = pad_spring(obj, s1, d1)[0]
+    dc = obj.core_depth_m
+    if (d0 - dc) * (d1 - dc) >= 0.0:
+        return 0.5 * (f0 + f1)
+    a = (dc - d0) / (d1 - d0)
+    fc = pad_spring(obj, s0 + a * (s1 - s0), dc)[0]
+    return 0.5 * ((f0 + fc) * a + (fc + f1) * (1.0 - a))
 
 def pad_contact(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: float, bx: float,
                 by: float) -> tuple[float, float, float, float, float]:

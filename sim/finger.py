@@ -49,7 +49,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from sim.contact import ContactObject, contact_object_from_config, pad_contact
+from sim.contact import ContactObject, contact_object_from_config, pad_contact, pad_spring
 from sim.motor import HOLD_ZERO, MotorCommand, apply_effort_effects, friction_force_n
 from sim.params import JOINT_RATIO, FingerParams, default_finger_params
 from sim.readout import FingerOutputs, finger_energy_j, finger_outputs, tendon_stretch_m
@@ -217,18 +217,17 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
     if obj.kind != "none":
         cphi = math.cos(phi)
         sphi = math.sin(phi)
-        kc = obj.stiffness_n_per_m
         cc = obj.damping_n_s_per_m
         ax0 = _PROX_PAD_START_M
         scale, depth, tt, nx, ny = pad_contact(obj, cphi, sphi, ax0, po, prox_len, po)
         if depth > 0.0:
             px = ax0 + tt * (prox_len - ax0)
             jn = -po * nx + px * ny
-            ke = kc * scale
+            fe, ke = pad_spring(obj, scale, depth)
             ce = cc * scale
-            force = ke * depth - ce * jn * v_phi
+            force = fe - ce * jn * v_phi
             if force > 0.0:
-                f_phi += ke * depth * jn
+                f_phi += fe * jn
                 k_phi += ke * jn * jn
                 c_phi += ce * jn * jn
                 pc_n = force
@@ -246,11 +245,11 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
             vn = jn_phi * v_phi
             for i in range(n):
                 vn += jl[i] * fvel[i]
-            ke = kc * scale
+            fe, ke = pad_spring(obj, scale, depth)
             ce = cc * scale
-            force = ke * depth - ce * vn
+            force = fe - ce * vn
             if force > 0.0:
-                fk = ke * depth
+                fk = fe
                 f_phi += fk * jn_phi - ce * jn_phi * (vn - jn_phi * v_phi)
                 k_phi += ke * jn_phi * jn_phi
                 c_phi += ce * jn_phi * jn_phi

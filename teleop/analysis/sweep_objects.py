@@ -1,7 +1,8 @@
 """The objects and operators of the robustness grid (``teleop sweep --grid full``).
 
 Objects are presets of ``hand.sim.object`` (the compliant body of ``sim.contact``: along each
-pad's normal it pushes back with ``k d + c d'``, never pulls).  Positions are the config's
+pad's normal it pushes back with ``k d + c d'``, never pulls, and a rigid core past
+``core_depth_m``).  Positions are the config's
 (cylinder centre 45 mm along the palm normal, 30 mm across; block face 30 mm across):
 
 =================  ========  ===========  =====================================================

@@ -21,6 +21,11 @@ class ObjectConfig:
     radius_m: float = param(0.02, "cylinder radius", unit="m", lo=1e-3, hi=0.5)
     stiffness_n_per_m: float = param(2000.0, "contact stiffness", unit="N/m", lo=1.0, hi=1e7)
     damping_n_s_per_m: float = param(5.0, "contact damping", unit="N s/m", lo=0.0, hi=1e5)
+    core_depth_m: float = param(0.012, "depth of the object's compliant skin: pressed deeper, "
+                                "a pad meets the rigid core (the servo's full torque must not "
+                                "push a finger through the object)", unit="m", lo=1e-4, hi=1.0)
+    core_stiffness_n_per_m: float = param(2e5, "stiffness added once the core is reached",
+                                          unit="N/m", lo=0.0, hi=1e8)
 
 
 @dataclass(frozen=True, slots=True)
