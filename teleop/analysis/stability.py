@@ -43,6 +43,7 @@ Definitions
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -188,14 +189,24 @@ def oscillations(s: RunSignals, c: StabilityCriteria = StabilityCriteria()
                  for n, x, floor in sigs)
 
 
+def segment_mask(t: np.ndarray, segments: Sequence[tuple[float, float]],
+                 late_half: bool = False) -> np.ndarray:
+    """Samples of ``t`` inside any of ``segments`` (``[a, b)``), or only in their late halves
+    (a segment open at the end counts up to the last sample)."""
+    m = np.zeros(len(t), bool)
+    for a, b in segments:
+        if late_half:
+            b = min(b, float(t[-1]) + 1e-9) if t.size else b
+            a = 0.5 * (a + b)
+        m |= (t >= a) & (t < b)
+    return m
+
+
 def tracking_hold_rad(s: RunSignals) -> float:
     """RMS of finger minus delayed set-point in the late halves of the analysis segments
     (nan: none)."""
     t = np.asarray(s.t_s, float)
-    m = np.zeros(len(t), bool)
-    for a, b in analysis_segments(s):
-        b = min(b, float(t[-1]) + 1e-9) if t.size else b
-        m |= (t >= 0.5 * (a + b)) & (t < b)
+    m = segment_mask(t, analysis_segments(s), late_half=True)
     if not m.any():
         return math.nan
     err = np.asarray(s.finger_rad, float) - delayed(t, np.asarray(s.setpoint_rad, float),
@@ -207,9 +218,7 @@ def felt_true_force_ratio(s: RunSignals, c: StabilityCriteria = StabilityCriteri
     """Mean displayed over mean true (pressure-mapped, delayed) force in the steady grasp."""
     t = np.asarray(s.t_s, float)
     segs = analysis_segments(s) or ((float(t[0]) + 0.5 * float(t[-1] - t[0]), math.inf),)
-    m = np.zeros(len(t), bool)
-    for a, b in segs:
-        m |= (t >= a) & (t < b)
+    m = segment_mask(t, segs)
     if not m.any():
         return math.nan
     true = delayed(t, np.asarray(s.force_measured_n, float), s.backward_delay_s)[m]

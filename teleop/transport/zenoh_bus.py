@@ -95,6 +95,12 @@ def zenoh_config(mode: str, listen: Sequence[str], connect: Sequence[str],
     # queue of 2 batches drops a message (CongestionControl.DROP, after 1 ms) as soon as its
     # tx thread stalls for a couple of milliseconds; 16 batches ride out such stalls.
     conf.insert_json5("transport/link/tx/queue/size/real_time", str(TX_QUEUE_BATCHES))
+    # No shared memory: zenoh 1.10's default sends payloads over 3 kB between local processes
+    # through the sender's 16 MiB SHM pool, and a receiver maps (and keeps) the pool of every
+    # new sender: +19 MB per connecting peer that sends one such payload (the soak's floods
+    # grew the hand ~37 MB each).  Our messages are under 2 kB and cross hosts in production,
+    # so SHM buys nothing here (tests/teleop/transport/test_zenoh_shm.py).
+    conf.insert_json5("transport/shared_memory/enabled", "false")
     return conf
 
 
