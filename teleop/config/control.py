@@ -190,6 +190,9 @@ class ContactModelConfig:
     settle_rate_per_s: float = param(0.5, "a held grasp has settled when its peak pressure "
                                      "changes by less than this fraction per second", unit="1/s",
                                      lo=0.0, hi=100.0)
+    settle_noise: float = param(5.0, "peak-pressure change between samples that the sensor "
+                                "noise alone makes, allowed on top of the settle rate (raw "
+                                "units)", lo=0.0, hi=1e4)
     memory_s: float = param(2.0, "time constant over which settled samples are remembered "
                                  "(forgetting)", unit="s", lo=0.01, hi=1000.0)
     evidence_s: float = param(0.05, "settled grasp time before the fitted stiffness replaces "

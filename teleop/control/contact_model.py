@@ -17,7 +17,8 @@ has settled::
   estimate.
 * ``k``, the stiffness: weighted least squares through ``(theta_c, 0)`` over *settled* samples
   (set-point within ``HELD_TOL_RAD`` of its average, motor angle slower than
-  ``static_speed_rad_s``, ``|dP/dt| < settle_rate * P``) with exponential forgetting (time
+  ``static_speed_rad_s``, a sample-to-sample change ``|dP| < settle_rate * P * dt +
+  settle_noise``: the noise term lets a light grasp settle) with exponential forgetting (time
   constant ``memory_s``): ``k = sum w P d / sum w d^2``, ``d = y - theta_c``.  The sums are
   kept in ``d``, so a moved contact angle does not spoil the stiffness.  Only settled samples
   count: the servo takes ~0.5 s to settle on an object and its speed limit lags a fast
@@ -106,7 +107,8 @@ def step_finger_model(m: FingerModel, c: ContactModelConfig, y_rad: float, x_rad
     if not m.touching:  # a new touch: where the object is now (the prior until a fit)
         k = m.stiffness if m.evidence_s >= c.evidence_s else c.prior_stiffness
         return replace(nxt, contact_rad=x_rad + m.free_offset_rad, stiffness=k)
-    settled = still and abs(pressure - m.p_prev) <= c.settle_rate_per_s * pressure * dt_s
+    settled = still and (abs(pressure - m.p_prev)
+                         <= c.settle_rate_per_s * pressure * dt_s + c.settle_noise)
     d = y_avg - m.contact_rad
     if not (settled and math.isfinite(d) and d >= c.min_deflection_rad):
         return nxt

@@ -147,3 +147,32 @@ def test_non_finite_input_is_ignored_and_an_implausible_fit_is_dropped_and_count
     tiny = replace(C, stiffness_max=10.0)
     bad = grasp(Plant(), FingerModel(), 0.7, random.Random(4), c=tiny)
     assert not bad.valid and bad.fallbacks > 0
+
+
+def _stiffening_grasp(c: ContactModelConfig) -> tuple[float, float]:
+    """A hard squeeze (y 0.8) on a stiffening object, then a light hold (y 0.45) for 20 s, the
+    cells read as integers with 1.5 units of noise (the simulated TakkTile's); returns
+    (model's pressure at the light hold, the plant's)."""
+    rng = random.Random(7)
+    xc, m, x, p = 0.30, FingerModel(), 0.0, 0.0
+
+    def settled(y: float) -> float:  # stiff servo: x ~ y; pressure rises as depth cubed
+        return 20000.0 * max(y - xc, 0.0) ** 3
+
+    ys = [0.8 * min(i / 80, 1.0) for i in range(160)] + [0.45] * 800
+    for y in ys:
+        x += (y - x) * (1.0 - math.exp(-DT / 0.1))
+        p += (settled(x) - p) * (1.0 - math.exp(-DT / 0.05))
+        reading = float(max(round(p + rng.gauss(0.0, 1.5)), 0))
+        m = step_finger_model(m, c, y, x, reading, DT)
+    return m.stiffness * (0.45 - m.contact_rad), settled(0.45)
+
+
+def test_a_light_hold_after_a_hard_squeeze_is_learnt_despite_the_cells_noise() -> None:
+    """The light hold reads ~70 units; its sample-to-sample noise (~2 units) is far above the
+    settle rate's allowance (0.9 units per sample), so only ``settle_noise`` lets it count;
+    the mutant without it keeps the hard squeeze's secant (the block at 1 s: 2.1x felt)."""
+    got, want = _stiffening_grasp(C)
+    assert got == pytest.approx(want, rel=0.15)  # forgetting: the squeeze's samples fade
+    stale, _ = _stiffening_grasp(replace(C, settle_noise=0.0))
+    assert stale > 2.0 * want
