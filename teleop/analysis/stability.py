@@ -215,10 +215,14 @@ def tracking_hold_rad(s: RunSignals) -> float:
 
 
 def felt_true_force_ratio(s: RunSignals, c: StabilityCriteria = StabilityCriteria()) -> float:
-    """Mean displayed over mean true (pressure-mapped, delayed) force in the steady grasp."""
+    """Mean displayed over mean true (pressure-mapped, delayed) force in the steady grasp: the
+    late halves of the analysis segments, as :func:`tracking_hold_rad` (a first touch made
+    before anything came back squeezes, then relaxes over seconds in the early half); the
+    late half of the run when there is no segment."""
     t = np.asarray(s.t_s, float)
-    segs = analysis_segments(s) or ((float(t[0]) + 0.5 * float(t[-1] - t[0]), math.inf),)
-    m = segment_mask(t, segs)
+    segs = analysis_segments(s)
+    m = (segment_mask(t, segs, late_half=True) if segs
+         else segment_mask(t, ((float(t[0]) + 0.5 * float(t[-1] - t[0]), math.inf),)))
     if not m.any():
         return math.nan
     true = delayed(t, np.asarray(s.force_measured_n, float), s.backward_delay_s)[m]
