@@ -55,7 +55,6 @@ def pad_spring(o: np.ndarray, scale: float, depth: float) -> tuple[float, float]
     return force, ke
 
 
-
 @njit(cache=True)
 def mean_spring_force(o: np.ndarray, s0: float, d0: float, s1: float, d1: float) -> float:
     """``sim.contact.mean_spring_force`` over the object array."""
@@ -67,6 +66,7 @@ def mean_spring_force(o: np.ndarray, s0: float, d0: float, s1: float, d1: float)
     a = (dc - d0) / (d1 - d0)
     fc = pad_spring(o, s0 + a * (s1 - s0), dc)[0]
     return 0.5 * ((f0 + fc) * a + (fc + f1) * (1.0 - a))
+
 
 @njit(cache=True)
 def pad_contact(o: np.ndarray, cphi: float, sphi: float, ax: float, ay: float, bx: float,

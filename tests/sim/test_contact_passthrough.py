@@ -17,13 +17,10 @@ PAD = (0.01, 0.004, 0.06, 0.004)
 
 
 def _compiled(obj: ContactObject, cphi: float, sphi: float, pad: tuple[float, ...]):
-    from sim.compiled_kernel import KIND_BLOCK, KIND_CYLINDER
+    from sim.compiled import pack_object
     from sim.compiled_kernel import pad_contact as kernel
 
-    kind = {"cylinder": KIND_CYLINDER, "block": KIND_BLOCK}.get(obj.kind, 0.0)
-    o = np.array([kind, obj.x_m, obj.y_m, obj.radius_m, obj.stiffness_n_per_m,
-                  obj.damping_n_s_per_m])
-    return kernel(o, cphi, sphi, *pad)
+    return kernel(pack_object(obj), cphi, sphi, *pad)
 
 
 def _sweep(shift_m: np.ndarray):
