@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from services.heap import HeapTrimmer
 from services.runtime import LoopStats, RateLoop, try_realtime_priority
 from services.samples import status_line
 from services.telemetry import Telemetry
@@ -184,6 +185,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
 
         threading.Thread(target=watch, daemon=True).start()
     telemetry: Telemetry | None = None
+    trimmer = HeapTrimmer(cfg.session.heap_trim_s)
     bus: Any = None
     backend: Any = None
     svc: Any = None
@@ -202,6 +204,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
                               cfg.dashboard.rate_hz, meta)
         bus = ZenohBus.from_config(role, cfg, clock=clock, announce=False)
+        trimmer.start()
         telemetry.rejects_source = lambda: bus.stats().rejects
         svc = build_service(role, cfg, bus, backend)
         print(f"ready {role}", flush=True)
@@ -276,6 +279,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
                 soak.close()
         return 0
     finally:
+        trimmer.stop()
         try:
             if svc is not None:
                 svc.close()  # safe state / force off, then the backend is released
@@ -289,7 +293,9 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
             if telemetry is not None:
                 telemetry.close()
             if stats is not None and opts.stats_path:
-                Path(opts.stats_path).write_text(json.dumps(stats.figures(role) | rejects)
-                                                 + "\n")
+                heap = {f"{role}_heap_trims": float(trimmer.trims),
+                        f"{role}_heap_trim_max_us": trimmer.longest_s * 1e6}
+                Path(opts.stats_path).write_text(
+                    json.dumps(stats.figures(role) | rejects | heap) + "\n")
             for s, h in previous.items():
                 signal.signal(s, h)
