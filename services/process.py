@@ -185,7 +185,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
 
         threading.Thread(target=watch, daemon=True).start()
     telemetry: Telemetry | None = None
-    trimmer = HeapTrimmer(cfg.session.heap_trim_s)
+    trimmer = HeapTrimmer(cfg.session.heap_trim_mb)
     bus: Any = None
     backend: Any = None
     svc: Any = None
@@ -204,7 +204,6 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
                               cfg.dashboard.rate_hz, meta)
         bus = ZenohBus.from_config(role, cfg, clock=clock, announce=False)
-        trimmer.start()
         telemetry.rejects_source = lambda: bus.stats().rejects
         svc = build_service(role, cfg, bus, backend)
         print(f"ready {role}", flush=True)
@@ -265,6 +264,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
             count[0] += 1
             if count[0] % every == 0:
                 gc.collect(1)
+                trimmer.poll()  # in this thread: a background trim would block it (heap.py)
                 if role == "controller":  # once a second: what the loop is doing
                     if t_start[0] is None:
                         t_start[0] = t_s - 1.0
@@ -279,7 +279,6 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
                 soak.close()
         return 0
     finally:
-        trimmer.stop()
         try:
             if svc is not None:
                 svc.close()  # safe state / force off, then the backend is released

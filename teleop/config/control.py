@@ -193,7 +193,7 @@ class ContactModelConfig:
     settle_noise: float = param(5.0, "peak-pressure change between samples that the sensor "
                                 "noise alone makes, allowed on top of the settle rate (raw "
                                 "units)", lo=0.0, hi=1e4)
-    memory_s: float = param(2.0, "time constant over which settled samples are remembered "
+    memory_s: float = param(0.5, "time constant over which settled samples are remembered "
                                  "(forgetting)", unit="s", lo=0.01, hi=1000.0)
     evidence_s: float = param(0.05, "settled grasp time before the fitted stiffness replaces "
                               "the prior", unit="s", lo=0.0, hi=100.0)

@@ -15,14 +15,19 @@ has settled::
   still holds at the grasp (``k`` absorbs it).  ``y`` is the set-point averaged over
   ``SETPOINT_TAU_S``: the servo does not follow the operator's tremor; neither does the
   estimate.
-* ``k``, the stiffness: weighted least squares through ``(theta_c, 0)`` over *settled* samples
-  (set-point within ``HELD_TOL_RAD`` of its average, motor angle slower than
-  ``static_speed_rad_s``, a sample-to-sample change ``|dP| < settle_rate * P * dt +
-  settle_noise``: the noise term lets a light grasp settle) with exponential forgetting (time
-  constant ``memory_s``): ``k = sum w P d / sum w d^2``, ``d = y - theta_c``.  The sums are
-  kept in ``d``, so a moved contact angle does not spoil the stiffness.  Only settled samples
-  count: the servo takes ~0.5 s to settle on an object and its speed limit lags a fast
-  set-point, so the moving part of a grasp (pressure far off the static map) would bias ``k``.
+* ``k``, the stiffness: the forgetting average (time constant ``memory_s``) of the settled
+  secant ``P / d``, ``d = y - theta_c``, over *settled* samples (set-point within
+  ``HELD_TOL_RAD`` of its average, motor angle slower than ``static_speed_rad_s``, a
+  sample-to-sample change ``|dP| < settle_rate * P * dt + settle_noise``: the noise term lets a
+  light grasp settle): ``k = sum w (P / d) dt / sum w dt``.  Every settled second counts the
+  same, whatever the grasp's depth, so ``k`` is the secant where the operator has been holding
+  over the last ``memory_s``.  Real objects stiffen (a compliant skin over a rigid core): a
+  least-squares line through ``(theta_c, 0)`` (``sum w P d / sum w d^2``) weights a deep
+  squeeze by ``d^2`` and kept rendering its steep secant for seconds after the operator had
+  eased to a light hold (the soft operator on the block at 1 s one-way: felt/true 1.8).  Only
+  settled samples count: the servo takes ~0.5 s to settle on an object and its speed limit
+  lags a fast set-point, so the moving part of a grasp (pressure far off the static map) would
+  bias ``k``.
 * From a finger's first touch until ``evidence_s`` of settled samples exist, ``k`` is
   ``prior_stiffness`` (so the operator feels the contact one round trip after the touch, not
   after the grasp has settled); then the fit, while it stays finite and ``0 < k <=
@@ -49,9 +54,8 @@ class FingerModel:
 
     contact_rad: float = math.nan  # theta_c (nan: not measured yet)
     stiffness: float = 0.0  # k, pressure units per rad (0: no valid model)
-    s_dd: float = 0.0  # forgetting sums over settled samples: sum w d^2 dt
-    s_pd: float = 0.0  # sum w P d dt
-    evidence_s: float = 0.0  # forgetting sum of settled time
+    s_secant: float = 0.0  # forgetting sum over settled samples: sum w (P / d) dt
+    evidence_s: float = 0.0  # forgetting sum of settled time: sum w dt
     free_offset_rad: float = 0.0  # a: settled y - x touching nothing
     touching: bool = False
     y_prev: float = math.nan  # the averaged set-point (SETPOINT_TAU_S)
@@ -113,13 +117,12 @@ def step_finger_model(m: FingerModel, c: ContactModelConfig, y_rad: float, x_rad
     if not (settled and math.isfinite(d) and d >= c.min_deflection_rad):
         return nxt
     lam = _forget(dt_s, c.memory_s)
-    s_dd = lam * m.s_dd + d * d * dt_s
-    s_pd = lam * m.s_pd + pressure * d * dt_s
+    s_secant = lam * m.s_secant + pressure / d * dt_s
     ev = lam * m.evidence_s + dt_s
-    k = s_pd / s_dd if s_dd > 0.0 else math.nan
+    k = s_secant / ev if ev > 0.0 else math.nan
     if not (math.isfinite(k) and 0.0 < k <= c.stiffness_max):
         return _dropped(nxt, counted=True)
-    return replace(nxt, s_dd=s_dd, s_pd=s_pd, evidence_s=ev,
+    return replace(nxt, s_secant=s_secant, evidence_s=ev,
                    stiffness=k if ev >= c.evidence_s else m.stiffness)
 
 

@@ -1,10 +1,10 @@
-"""The heap trimmer gives a backlog's freed memory back (a real process, glibc's malloc_trim)."""
+"""The heap trimmer gives a backlog's freed memory back (a real process, glibc's malloc_trim)
+and trims only when the resident size has jumped."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -15,15 +15,18 @@ ROOT = Path(__file__).resolve().parents[2]
 
 # A worker thread allocates 60 MB in 2 kB blocks (its own malloc arena, like zenoh's receive
 # threads after a stall) and keeps every 50th block, so the freed memory is fragmented and glibc
-# keeps it. The process then runs the trimmer for a second.
+# keeps it. The process then polls the trimmer as a service loop does (its base taken before
+# the backlog).
 CHILD = """
-import sys, threading, time
+import sys, threading
 sys.path.insert(0, sys.argv[2])
 from services.heap import HeapTrimmer
 def rss_mb():
     for line in open("/proc/self/status"):
         if line.startswith("VmRSS"):
             return int(line.split()[1]) / 1024
+trimmer = HeapTrimmer(float(sys.argv[1]))
+trimmer.poll()
 keep = []
 def work():
     blobs = [bytes(2000) + bytes([i % 251]) for i in range(30000)]
@@ -32,9 +35,8 @@ t = threading.Thread(target=work)
 t.start()
 t.join()
 before = rss_mb()
-trimmer = HeapTrimmer(float(sys.argv[1])).start()
-time.sleep(1.0)
-trimmer.stop()
+for _ in range(3):
+    trimmer.poll()
 print(before, rss_mb(), trimmer.trims)
 """
 
@@ -51,10 +53,10 @@ needs_glibc = pytest.mark.skipif(not HeapTrimmer(1.0).available,
 
 
 @needs_glibc
-def test_the_trimmer_returns_a_fragmented_backlog_to_the_os() -> None:
-    before, after, trims = _run(0.2)
+def test_the_trimmer_returns_a_fragmented_backlog_to_the_os_once() -> None:
+    before, after, trims = _run(4.0)
     assert before > 50.0, f"the backlog did not build up ({before:.1f} MB)"
-    assert trims >= 3
+    assert trims == 1  # the jump is trimmed once; the next polls find nothing grown
     assert before - after > 30.0, f"RSS {before:.1f} -> {after:.1f} MB"
 
 
@@ -65,22 +67,46 @@ def test_mutant_without_trimming_the_backlog_stays() -> None:
     assert after > before - 5.0, f"RSS {before:.1f} -> {after:.1f} MB without trimming"
 
 
-def test_an_injected_trim_is_called_on_its_period_and_stops() -> None:
+def _fake(rss: list[float]) -> tuple[HeapTrimmer, list[int]]:
     calls: list[int] = []
-    trimmer = HeapTrimmer(0.02, trim=lambda pad: calls.append(pad) or 1).start()
-    time.sleep(0.2)
-    trimmer.stop()
-    n = len(calls)
-    time.sleep(0.06)
-    assert n >= 4 and calls == [0] * n and len(calls) == n
-    assert trimmer.trims == n and trimmer.longest_s >= 0.0
+
+    def trim(pad: int) -> int:
+        calls.append(pad)
+        rss[0] -= 5.0  # a trim gives 5 MB back
+        return 1
+
+    return HeapTrimmer(4.0, trim=trim, rss_mb=lambda: rss[0]), calls
 
 
-def test_period_zero_starts_no_thread_and_a_negative_period_is_refused() -> None:
+def test_a_trim_only_after_the_resident_size_jumped_by_the_threshold() -> None:
+    rss = [50.0]
+    trimmer, calls = _fake(rss)
+    assert not trimmer.poll()  # the first poll sets the base
+    rss[0] = 53.9
+    assert not trimmer.poll() and calls == []
+    rss[0] = 60.0
+    assert trimmer.poll() and calls == [0]
+    assert trimmer.base_mb == 55.0 and trimmer.trims == 1
+    assert not trimmer.poll()  # nothing grew since
+    rss[0] = 45.0
+    assert not trimmer.poll() and trimmer.base_mb == 45.0  # memory went down: a lower base
+    rss[0] = 49.5
+    assert trimmer.poll() and trimmer.trims == 2
+
+
+def test_threshold_zero_never_trims_and_a_bad_threshold_is_refused() -> None:
+    rss = [50.0]
+    trimmer, calls = _fake(rss)
+    trimmer.threshold_mb = 0.0
+    rss[0] = 500.0
+    assert not trimmer.poll() and calls == []
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(ValueError, match="heap trim threshold"):
+            HeapTrimmer(bad)
+
+
+def test_no_proc_means_no_trim() -> None:
     calls: list[int] = []
-    trimmer = HeapTrimmer(0.0, trim=lambda pad: calls.append(pad) or 1).start()
-    time.sleep(0.05)
-    trimmer.stop()
-    assert calls == []
-    with pytest.raises(ValueError, match="heap trim period"):
-        HeapTrimmer(-1.0)
+    trimmer = HeapTrimmer(1.0, trim=lambda pad: calls.append(pad) or 1,
+                          rss_mb=lambda: float("nan"))
+    assert not trimmer.poll() and not trimmer.poll() and calls == []
