@@ -9,10 +9,17 @@ receiver, none of it in use). ``malloc_trim(0)`` returns the free pages of every
 :meth:`HeapTrimmer.poll` is called by the service loop itself, in its once-a-second slot: it
 reads the resident size (``/proc/self/statm``, ~10 us) and trims only when it has grown by
 ``threshold_mb`` since the last trim, so a trim (0.3-2 ms) is paid once after a backlog, not
-periodically.  The loop's own thread trims on purpose: a trim on a background thread of normal
-priority holds the arenas' locks while the real-time loop can preempt it, and the loop then
-waits for the lock (a 30-minute soak with a 5 s background trimmer: the master's p99 lateness
-went from 18 us to 18.5 ms, 300-550 stalls per 5 minutes, after its first SIGSTOP).
+periodically.  The loop's own thread trims: a trim on a background thread of normal priority
+holds the arenas' locks while the real-time loop can preempt it.
+
+**Off by default** (``session.heap_trim_mb = 0``).  It does what it is for (30-minute soak,
+docs/soak-heap-trim.json: RSS growth at most 6.2 %, against 23 % without), but in every paired
+soak the master's 1 kHz loop had more late ticks with it: 166 against 41 stalls over 20 ms in
+6 minutes with a fault every 20 s, 124 against 30 in 4 minutes with one every 10 s, and the
+30-minute run's master p99 lateness was 18-19 ms in each 5-minute window after its own
+SIGSTOP.  The mechanism is not pinned down (a trim takes every arena's lock, and a zenoh thread
+holding one cannot run while both cores spin real-time loops); a late haptic tick costs more
+than 13 MB kept.
 
 Only glibc has ``malloc_trim``; elsewhere the trimmer does nothing (:attr:`available`).
 """

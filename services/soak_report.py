@@ -62,8 +62,9 @@ def latency_windows(timing: dict[str, list[np.ndarray]], window_s: float, start_
 def growth(samples: Sequence[tuple[float, str, int, float, int]], warmup_s: float,
            exclude: Sequence[tuple[float, float]] = ()) -> list[dict[str, Any]]:
     """Per process (role, pid) from ``(t_s, role, pid, rss_mb, threads)`` samples: the RSS
-    and thread count after warm-up (the median of the :data:`ROBUST_SAMPLES` samples from
-    ``warmup_s`` after its first), at the end (the median of the last ones), the range, the
+    after warm-up (the median of the :data:`ROBUST_SAMPLES` samples from ``warmup_s`` after
+    its first) and at the end (the median of the last ones), the thread count the same way
+    but the fewest in each window (the threads that stay), the range, the
     growth in % between the two (None when the process did not outlive its warm-up by that
     many samples) and the whole series ``[t_s, rss_mb, threads]``.
 
@@ -92,7 +93,10 @@ def growth(samples: Sequence[tuple[float, str, int, float, int]], warmup_s: floa
         if after.size >= 2 * k:
             b = after[0]
             warm, end = float(np.median(rss[b:b + k])), float(np.median(rss[-k:]))
-            thr_warm, thr_end = float(np.median(thr[b:b + k])), float(np.median(thr[-k:]))
+            # threads: the fewest alive in each window - a leaked thread stays and raises
+            # it, a transient one (zenoh spawns workers while it reconnects) does not; with
+            # ~10 threads a median would count one transient thread at the end as 10 %
+            thr_warm, thr_end = float(np.min(thr[b:b + k])), float(np.min(thr[-k:]))
             steps = np.diff(rss[b:])
             inside = [any(lo <= t1 and t0 <= hi for lo, hi in exclude)
                       for t0, t1 in zip(t[b:-1], t[b + 1:], strict=True)]

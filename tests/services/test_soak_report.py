@@ -70,6 +70,17 @@ def _status(t: np.ndarray, wd: np.ndarray) -> list[dict[str, float]]:
     return [{"t_s": float(a), "wd": int(b)} for a, b in zip(t, wd, strict=True)]
 
 
+def test_thread_growth_counts_threads_that_stay_not_transient_ones() -> None:
+    """A zenoh session starts a worker now and then (10 -> 11 for a few samples); a leaked
+    thread stays.  One transient thread in the last samples is not growth; the mutant rule
+    (medians) read the soak's master, 10 threads, as 10 % growth."""
+    transient = [(float(t), "m", 3, 50.0, 11 if t in (100, 110, 115) else 10)
+                 for t in range(0, 120, 5)]
+    assert growth(transient, 20.0)[0]["threads_growth_pct"] == 0.0
+    leak = [(float(t), "m", 3, 50.0, 10 + (t >= 60)) for t in range(0, 120, 5)]
+    assert growth(leak, 20.0)[0]["threads_growth_pct"] == pytest.approx(10.0)
+
+
 def test_recovery_waits_for_every_watchdog_and_a_silent_role_is_not_clear() -> None:
     t = np.arange(0.0, 30.0, 0.1)
     hand = _status(t, (t >= 10) & (t < 12.3))
