@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import math
 import os
 import time
 from collections.abc import Callable
@@ -71,10 +72,14 @@ class HeapTrimmer:
         self.threshold_mb = threshold_mb
         self._trim = trim if trim is not None else _libc_trim()
         self._rss = rss_mb
-        self.available = self._trim is not None
         self.trims = 0
         self.longest_s = 0.0
         self.base_mb = float("nan")  # resident size after the last trim (or the first poll)
+
+    @property
+    def available(self) -> bool:
+        """Whether there is a ``malloc_trim`` to call."""
+        return self._trim is not None
 
     def trim_now(self) -> None:
         """One trim, timed; the resident size after it is the new base."""
@@ -91,7 +96,7 @@ class HeapTrimmer:
         if self.threshold_mb <= 0.0 or self._trim is None:
             return False
         rss = self._rss()
-        if rss != rss:  # no /proc: nothing to compare
+        if math.isnan(rss):  # no /proc: nothing to compare
             return False
         if not self.base_mb <= rss:  # first poll, or memory went down: a lower base
             self.base_mb = rss

@@ -56,7 +56,7 @@ def test_the_steady_grasp_is_felt_across_delay(delay_s: float, loss: float, floo
     # issue 15: the hand's closure within 0.1 rad of the command once the delay has passed;
     # in contact the gap is the squeeze the position servo needs for the grasp force, deepest
     # on the 5000 N/m block: there the bound is what `direct` itself leaves at zero delay
-    # (0.107 rad measured), plus 10 % - the delay adds no closure error of its own
+    # (0.106 rad in this scenario), plus 10 % - the delay adds no closure error of its own
     track = tracking_hold_rad(sig)
     bound = max(0.1, 1.1 * _direct_hold_rad_at_zero_delay(obj))
     assert track <= bound, f"{obj} at {delay_s} s: closure {track:.3f} rad from the command"

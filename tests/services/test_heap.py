@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # A worker thread allocates 60 MB in 2 kB blocks (its own malloc arena, like zenoh's receive
 # threads after a stall) and keeps every 50th block, so the freed memory is fragmented and glibc
 # keeps it. The process then polls the trimmer as a service loop does (its base taken before
-# the backlog).
+# the backlog). RSS is read from /proc/self/status here, not through the trimmer's own gauge.
 CHILD = """
 import sys, threading
 sys.path.insert(0, sys.argv[2])
@@ -41,8 +41,8 @@ print(before, rss_mb(), trimmer.trims)
 """
 
 
-def _run(period_s: float) -> tuple[float, float, int]:
-    out = subprocess.run([sys.executable, "-c", CHILD, str(period_s), str(ROOT)],
+def _run(threshold_mb: float) -> tuple[float, float, int]:
+    out = subprocess.run([sys.executable, "-c", CHILD, str(threshold_mb), str(ROOT)],
                          capture_output=True, text=True, check=True, timeout=60)
     before, after, trims = out.stdout.split()
     return float(before), float(after), int(trims)
