@@ -141,6 +141,12 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
     return names, cols, bnds, target
 
 
+def ee_rows(sig: EESignals) -> slice:
+    """The regression rows: decimated, the filter's transients at both ends left out."""
+    margin = int(3 * sig.fs_hz / sig.cutoff_hz) + 1
+    return slice(margin, len(sig.t) - margin, sig.step)
+
+
 def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | None = None,
            fixed_inertia: float = 1.0) -> EEFit:
     """Bounded linear least squares of the equation error with ``effects`` (name -> constant)."""
@@ -150,8 +156,7 @@ def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | Non
     phi = np.column_stack([_filt(c, fs, fc) for c in cols]) if cols else np.zeros((len(target),
                                                                                      0))
     tgt = _filt(target, fs, fc)
-    margin = int(3 * fs / fc) + 1
-    rows = slice(margin, len(tgt) - margin, sig.step)
+    rows = ee_rows(sig)
     A, b = phi[rows], tgt[rows]
     if A.shape[1]:
         scale = np.maximum(np.sqrt(np.mean(A ** 2, axis=0)), 1e-300)
