@@ -101,7 +101,7 @@ def stlsq(a: Array, b: Array, owner: list[int], share: float = STLSQ_SHARE,
     return coef / scale
 
 
-def _ranked(sig: EESignals, e: Array) -> list[tuple[tuple[Term, ...], tuple[float, ...],
+def ranked_terms(sig: EESignals, e: Array) -> list[tuple[tuple[Term, ...], tuple[float, ...],
                                                       float]]:
     """Library groups STLSQ keeps for residual ``e``, largest contribution first."""
     groups = candidate_groups(sig, e)
@@ -132,7 +132,7 @@ def propose(path: OEPath, nom: ModelFit, final: ModelFit
     e = model_equation_error(sig, p, eff)    # J a - modelled efforts: the effort it lacks
     current = nom
     accepted: list[ProposedTerm] = []
-    for group, coefs, _ in _ranked(sig, e):
+    for group, coefs, _ in ranked_terms(sig, e):
         start = {**current.as_dict(), **{t.key: c for t, c in zip(group, coefs, strict=True)}}
         if group[0].kind == "sin":   # its wavenumber is refined by the simulation fit
             start[f"{WAVE}{group[0].const:.6g}"] = group[0].const

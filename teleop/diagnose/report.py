@@ -96,8 +96,9 @@ def to_text(d: Diagnosis, source: str = "") -> str:
                      f"residual is {d.residual_after.rms_over_noise:.0f}x the noise (physics "
                      f"outside the catalog, or a start-up transient)")
     if d.proposed:
+        held = "simulation" if d.analysis == "output-error" else "inverse dynamics"
         lines.append("physics outside the catalog, proposed by sparse regression on the "
-                     "force-domain residual and kept by held-out simulation:")
+                     f"force-domain residual and kept by held-out {held}:")
         for p in d.proposed:
             lines.append(f"  {_equation(p, d.units)}")
             lines.append(f"     score {p.score:.1f}, held-out gain {p.holdout_gain:.1%}")

@@ -242,7 +242,8 @@ def _prune(path: OEPath, full: ModelFit, chosen: list[EffectResult]
 
 
 def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
-    return {"dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
+    return {"actuator_gain": tuple(float(g) for g in np.geomspace(0.4, 2.5, 37)),
+            "dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
             "actuator_lag": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.2, 0.4),
             "actuator_saturation": tuple(f * scales.umax for f in (0.3, 0.4, 0.5, 0.6, 0.7,
                                                                   0.8, 0.9)),

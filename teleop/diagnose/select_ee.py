@@ -22,9 +22,9 @@ from teleop.diagnose.equation_error import (
     ee_rows,
 )
 from teleop.diagnose.fit import NUMERIC_FAILURES
+from teleop.diagnose.library import Term
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.results import DiagnoseOptions, EffectResult
-from teleop.diagnose.select import _ee_grids
 
 
 def _ee_slice(sig: EESignals, sl: slice) -> EESignals:
@@ -32,15 +32,17 @@ def _ee_slice(sig: EESignals, sl: slice) -> EESignals:
                      None if sig.u is None else sig.u[sl], sig.fs_hz, sig.cutoff_hz, sig.step)
 
 
-def _ee_holdout(sig: EESignals, nominal: AxisNominal, base: dict[str, float], name: str,
+def _ee_holdout(sig: EESignals, nominal: AxisNominal, cur: EEState, aug: EEState, name: str,
                 grid: tuple[float, ...], fixed_inertia: float) -> float:
-    """Held-out gain: both models fitted on the first 70 %, effort error on the last 30 %."""
+    """Held-out gain: both models fitted on the first 70 %, effort error on the last 30 % (a
+    catalog effect's constant scanned on its grid again; a library term's constant kept)."""
     n = len(sig.t)
     cut = int(0.7 * n)
     m = int(3 * sig.fs_hz / sig.cutoff_hz)
     train, test = _ee_slice(sig, slice(0, cut)), _ee_slice(sig, slice(cut, n))
-    b = ee_fit(train, nominal, base, fixed_inertia)
-    a = ee_effect_fit(train, nominal, base, name, grid, fixed_inertia)
+    b = ee_fit(train, nominal, cur.base, fixed_inertia, cur.terms)
+    a = (ee_effect_fit(train, nominal, cur.base, name, grid, fixed_inertia, cur.terms)
+         if name in EE_EFFECTS else ee_fit(train, nominal, aug.base, fixed_inertia, aug.terms))
     errs = []
     for f in (b, a):
         r = ee_apply(test, nominal, f, fixed_inertia)[m: len(test.t) - m]
@@ -50,10 +52,11 @@ def _ee_holdout(sig: EESignals, nominal: AxisNominal, base: dict[str, float], na
 
 @dataclass(frozen=True)
 class EEState:
-    """An equation-error fit and the effect constants it was fitted with."""
+    """An equation-error fit and the effect constants and library terms it was fitted with."""
 
     fit: EEFit
     base: dict[str, float]
+    terms: tuple[Term, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -79,7 +82,7 @@ class EEPath:
         return False  # the effort residual has no noise floor of its own: the rule decides
 
     def holdout(self, current: EEState, name: str, f: EEState) -> tuple[float, bool]:
-        return _ee_holdout(self.sig, self.nominal, current.base, name,
+        return _ee_holdout(self.sig, self.nominal, current, f, name,
                            self.grids.get(name, (1.0,)), self.fixed_inertia), True
 
     def fit_candidates(self, current: EEState, names: tuple[str, ...]
@@ -90,12 +93,14 @@ class EEPath:
                 continue
             try:
                 f = ee_effect_fit(self.sig, self.nominal, current.base, name,
-                                  self.grids.get(name, (1.0,)), self.fixed_inertia)
+                                  self.grids.get(name, (1.0,)), self.fixed_inertia,
+                                  current.terms)
             except NUMERIC_FAILURES:
                 continue  # disqualified
             if math.isfinite(f.bic):
                 out.append((name, EEState(f, {**current.base,
-                                              name: dict(f.extra).get(name, 1.0)})))
+                                              name: dict(f.extra).get(name, 1.0)},
+                                          current.terms)))
         return out
 
 
@@ -116,16 +121,13 @@ def _effect_result(name: str, f: EEFit, score: float, gain: float) -> EffectResu
                         cand.explanation(name, val))
 
 
-def select_ee(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions, names: tuple[str, ...],
-              fixed_inertia: float, scales: cand.Scales
-              ) -> tuple[EEFit, EEFit, list[EffectResult], list[tuple[str, float]],
-                         tuple[str, ...]]:
-    """Forward selection by the engine on the equation error: the nominal and final fits, the
-    effects, the first step's ranking (effect, score) and the ambiguity notes."""
-    path = EEPath(sig, nominal, fixed_inertia, _ee_grids(scales))
-    nom = EEState(ee_fit(sig, nominal, {}, fixed_inertia), {})
-    sel = engine.forward(path, nom, names, opts.max_effects,
+def catalog_ee(path: EEPath, start: EEState, opts: DiagnoseOptions, names: tuple[str, ...]
+               ) -> tuple[EEState, list[EffectResult], list[tuple[str, float]], tuple[str, ...]]:
+    """Forward selection of catalog effects by the engine on the equation error, from
+    ``start``: the final state, the effects, the first step's ranking (effect, score) and the
+    ambiguity notes."""
+    sel = engine.forward(path, start, names, opts.max_effects,
                          engine.Rule(criterion=opts.criterion))
     chosen = [_effect_result(st.name, st.fit.fit, st.verdict.score, st.verdict.holdout_gain)
               for st in sel.steps]
-    return nom.fit, sel.final.fit, chosen, list(sel.ranking), sel.ambiguous
+    return sel.final, chosen, list(sel.ranking), sel.ambiguous
