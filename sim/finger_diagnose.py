@@ -11,7 +11,6 @@ base spring (``nonlinear_stiffness``), a gravity moment (``gravity``) and an ang
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -28,7 +27,6 @@ from sim.finger_dynamic import PARAMS as PARAMS_DYN
 from sim.finger_hand_rec import hand_finger_data, is_hand_recording
 from sim.finger_model_file import write_model
 from sim.params import FingerParams, default_finger_params
-from teleop.diagnose.ambiguity import ambiguous
 from teleop.diagnose.candidates import explanation
 from teleop.diagnose.select_sim import DynamicDiagnosis, diagnose_dynamic, print_progress
 from teleop.effects import EffectSet
@@ -114,14 +112,7 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
     else:
         lines.append("missing physics: none the data support above the floor "
                      f"({d.floor_rad:.2g} rad: noise and the physics step)")
-    amb: list[str] = []
-    if d.chosen:
-        ne = d.verdicts[0].n_eff
-        g1 = dict(d.ranking).get(d.chosen[0][0], 0.0)
-        amb = ambiguous(d.chosen[0][0], [
-            (n, d.verdicts[0].score - ne * math.log(max(1.0 - g, 1e-12) / max(1.0 - g1, 1e-12)))
-            for n, g in d.ranking])
-        lines += [f"note: {a}" for a in amb]
+    lines += [f"note: {a}" for a in d.ambiguous]
     for name, why in d.rejected:
         lines.append(f"  not kept: {name} ({why})")
     if d.warning:
@@ -129,6 +120,7 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
     lines.append("candidates (relative RSS reduction, first step): "
                  + ", ".join(f"{n} {g:+.3f}" for n, g in d.ranking))
     lines.append(f"fit NRMSE: before {before:.4g}, after {after:.4g}")
+    scores = dict(d.scores)
     doc: dict[str, object] = {
         "model": "finger", "analysis": "output-error",
         "selection": "penalised likelihood (effective sample size) + held-out gain",
@@ -141,8 +133,9 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
                 "after": {"nrmse": after,
                           "params": {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)),
                                      **dict(d.final.effects)}}},
-        "ranking": [{"name": n, "rss_reduction": g} for n, g in d.ranking],
-        "unexplained": d.warning, "note": data.note or None, "ambiguous": amb}
+        "ranking": [{"name": n, "rss_reduction": g, **({"score": scores[n]} if n in scores
+                                                        else {})} for n, g in d.ranking],
+        "unexplained": d.warning, "note": data.note or None, "ambiguous": list(d.ambiguous)}
     return lines, doc
 
 

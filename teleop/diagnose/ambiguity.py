@@ -1,14 +1,18 @@
 """Effects the data given cannot tell apart, and the experiment that would separate them.
 
-Two candidates are indistinguishable on a recording when the runner-up's score is within the
-selection rule's own threshold of the chosen effect's (:mod:`teleop.diagnose.criterion`): the
-data hold no strong evidence for one over the other.  The report then names both and the
+Two candidates are indistinguishable on a recording when the rule's score of the chosen effect
+against the runner-up (in the independent samples of the chosen model's residual, slow structure
+counted) is under the rule's own threshold (:mod:`teleop.diagnose.criterion`): the data hold no
+strong evidence for one over the other.  The report then names both and the
 experiment that separates them (from the physics of the pair, not from the recording).
 """
 
 from __future__ import annotations
 
-from teleop.diagnose.criterion import DEFAULT, Criterion
+import math
+from collections.abc import Sequence
+
+from teleop.diagnose.criterion import DEFAULT, Array, Criterion, structured_n
 
 SEPARATE: dict[frozenset[str], str] = {
     frozenset({"dead_time", "actuator_lag"}):
@@ -38,20 +42,37 @@ SEPARATE: dict[frozenset[str], str] = {
 }
 
 
-def ambiguous(chosen: str, ranking: list[tuple[str, float]] | tuple[tuple[str, float], ...],
-              criterion: Criterion = DEFAULT) -> list[str]:
-    """Report lines for candidates within ``min_score`` of ``chosen`` (ranking: name, score)."""
-    scores = dict(ranking)
-    if chosen not in scores:
+def ambiguous_fits(chosen: str, residual: Array,
+                   fits: Sequence[tuple[str, float, int, float]],
+                   criterion: Criterion = DEFAULT) -> list[str]:
+    """Report lines for the candidates of one step the data cannot tell from ``chosen``.
+
+    ``fits``: (name, training RSS, added parameters, score) of every candidate fitted at that
+    step, ``chosen`` among them; ``residual``: the chosen model's training residual.  The
+    evidence for ``chosen`` over a runner-up ``b`` is the rule's score of one against the
+    other, ``n ln(RSS_b / RSS_chosen) - (k_chosen - k_b) ln n``, with ``n`` the independent
+    samples of the chosen model's residual counting its slow structure
+    (:func:`criterion.structured_n`): where the chosen effect leaves structure the model
+    lacks, a small difference in fit is not evidence for one effect over the other.  A pair
+    is reported when that evidence is under the rule's ``min_score`` and the runner-up passes
+    the score itself.
+    """
+    by = {n: (rss, k) for n, rss, k, _ in fits}
+    if chosen not in by:
         return []
+    rss_a, k_a = by[chosen]
+    n_s = structured_n(residual)
     out = []
-    for name, s in ranking:
-        if name == chosen or s < criterion.min_score:
+    for name, rss_b, k_b, s_b in fits:
+        if name == chosen or not s_b >= criterion.min_score or not math.isfinite(rss_b):
             continue
-        if scores[chosen] - s < criterion.min_score:
+        evidence = (n_s * math.log(rss_b / rss_a) if rss_a > 0 else math.inf) - (
+            k_a - k_b) * math.log(max(n_s, math.e))
+        if evidence < criterion.min_score:
             how = SEPARATE.get(frozenset({chosen, name}),
                                "a recording where only one of them acts (different input kind "
                                "or amplitude)")
-            out.append(f"cannot tell {chosen} from {name} on this recording (scores "
-                       f"{scores[chosen]:.0f} vs {s:.0f}); to separate them: {how}")
+            out.append(f"cannot tell {chosen} from {name} on this recording (evidence for "
+                       f"{chosen} {evidence:.1f} < {criterion.min_score:g}, in "
+                       f"{n_s:.0f} independent samples); to separate them: {how}")
     return out

@@ -59,23 +59,34 @@ class Verdict:
     why: str
 
 
-def effective_n(residual: Array) -> float:
-    """Independent samples a residual is worth: the lag-1 autocorrelation of its fast part
-    (the residual less a local cubic fit, i.e. the measurement noise as sampled) corrects for
-    oversampled or coloured noise.  Slow structure left in the residual is not counted here:
-    it is what the held-out check and the unexplained-residual warning are for."""
-    r = np.asarray(residual, float)
+def _n_from_rho(r: Array, detrend: bool) -> float:
+    r = np.asarray(r, float)
     r = r[np.isfinite(r)]
     n = len(r)
     if n < MIN_SAMPLES_FOR_RHO:
         return float(n)
-    if n > 2 * SMOOTH_WINDOW:
+    if detrend and n > 2 * SMOOTH_WINDOW:
         r = r - savgol_filter(r, SMOOTH_WINDOW, 3)
     r = r - np.mean(r)
     den = float(r @ r)
     rho = float(r[1:] @ r[:-1]) / den if den > 0 else 0.0
     rho = min(max(rho, 0.0), 0.999)
     return max(2.0, n * (1.0 - rho) / (1.0 + rho))
+
+
+def effective_n(residual: Array) -> float:
+    """Independent samples a residual is worth: the lag-1 autocorrelation of its fast part
+    (the residual less a local cubic fit, i.e. the measurement noise as sampled) corrects for
+    oversampled or coloured noise.  Slow structure left in the residual is not counted here:
+    it is what the held-out check and the unexplained-residual warning are for."""
+    return _n_from_rho(residual, detrend=True)
+
+
+def structured_n(residual: Array) -> float:
+    """Independent samples a residual is worth counting its slow structure too (the lag-1
+    autocorrelation of the residual itself): what two candidates that both leave structure
+    can be told apart by.  A white residual keeps ``n``; a slow one counts as few samples."""
+    return _n_from_rho(residual, detrend=False)
 
 
 def score(rss0: float, rss1: float, n: int, k_added: int, n_eff: float,
@@ -92,13 +103,21 @@ def score(rss0: float, rss1: float, n: int, k_added: int, n_eff: float,
     return gain - k_added * math.log(max(n_eff, math.e))
 
 
+def score_of(rss0: float, rss1: float, residual1: Array, k_added: int,
+             noise: float | None = None, n_eff: float | None = None) -> tuple[float, float]:
+    """(score, n_eff) of a candidate from its residual ``residual1`` (``n_eff`` given: the
+    path knows its samples are independent, e.g. static equilibria)."""
+    n = int(np.sum(np.isfinite(residual1)))
+    ne = effective_n(residual1) if n_eff is None else n_eff
+    return score(rss0, rss1, n, k_added, ne, noise), ne
+
+
 def judge(rss0: float, rss1: float, residual1: Array, k_added: int = 1,
           holdout_gain: float = math.nan, holdout_informative: bool = True,
-          noise: float | None = None, criterion: Criterion = DEFAULT) -> Verdict:
+          noise: float | None = None, criterion: Criterion = DEFAULT,
+          n_eff: float | None = None) -> Verdict:
     """Apply the rule to one candidate (``residual1``: the augmented model's residual)."""
-    n = int(np.sum(np.isfinite(residual1)))
-    ne = effective_n(residual1)
-    s = score(rss0, rss1, n, k_added, ne, noise)
+    s, ne = score_of(rss0, rss1, residual1, k_added, noise, n_eff)
     if s < criterion.min_score:
         return Verdict(s, ne, holdout_gain, False,
                        f"score {s:.1f} < {criterion.min_score:g} (n_eff {ne:.0f})")

@@ -30,6 +30,7 @@ from teleop.diagnose.equation_error import (
 from teleop.diagnose.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.propose import select_with_library
+from teleop.diagnose.propose_ee import select_ee_with_library
 from teleop.diagnose.residual import analyse_residual, noise_std
 from teleop.diagnose.results import (
     DiagnoseOptions,
@@ -40,7 +41,7 @@ from teleop.diagnose.results import (
     Validation,
     nrmse,
 )
-from teleop.diagnose.select_ee import select_ee
+from teleop.diagnose.select import OEPath
 from teleop.diagnose.windows import conditions, excess, locate_windows, moving_rms
 from teleop.errors import RecordingError, UserInputError
 from teleop.recording import Recording
@@ -185,10 +186,10 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         start_i += len(s_.t)
     conds = conditions(sig.t, sig.x, sig.v, sig.u)
     signals = {"position": data.y}
-    proposed: tuple[ProposedTerm, ...] = ()   # library terms (output-error only)
+    proposed: tuple[ProposedTerm, ...] = ()   # library terms outside the catalog
     if mode == "output-error":
-        final, chosen, ranking, proposed = select_with_library(
-            data, nominal, nom_fit, opts, names, sig, fixed_inertia, noise)
+        final, chosen, ranking, proposed, amb = select_with_library(
+            OEPath(data, nominal, opts, names, sig, fixed_inertia, noise), nom_fit)
         r_before, r_after = data.y - nom_fit.y_fit, data.y - final.y_fit
         before, after = nom_nrmse, nrmse(data.y, final.y_fit)
         p_nom, e_nom = build(nom_fit.names, nom_fit.theta, data)
@@ -203,8 +204,8 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
     else:
-        nom_e, fin_e, chosen, ranking = select_ee(sig, nominal, opts, names, fixed_inertia,
-                                                   scales)
+        nom_e, fin_e, chosen, ranking, proposed, amb = select_ee_with_library(
+            sig, nominal, opts, names, fixed_inertia, scales)
         ee_nom, ee_fin = nom_e.residual, fin_e.residual
         tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
         tgt_scale = float(np.linalg.norm(tgt - np.mean(tgt)))
@@ -237,7 +238,8 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     units = (library.units(opts.input_col, "effort units"),
              library.units(opts.output_col, "position units"))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
-                     windows, stats_b, stats_a, before, after, val, traces, proposed, units)
+                     windows, stats_b, stats_a, before, after, val, traces, proposed, units,
+                     tuple(amb))
 
 
 def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,

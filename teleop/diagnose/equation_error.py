@@ -16,6 +16,7 @@ from scipy import optimize
 from scipy import signal as sps
 
 from teleop.diagnose.axis_model import Array, AxisParams, delayed, input_effort, lagged
+from teleop.diagnose.library import Term, column
 from teleop.diagnose.model import AxisNominal
 from teleop.effects import EffectSet
 
@@ -49,6 +50,7 @@ class EEFit:
     n: int
     n_params: int
     extra: tuple[tuple[str, float], ...] = ()
+    terms: tuple[Term, ...] = ()   # library terms (physics outside the catalog) in the fit
 
     def get(self, name: str, default: float = 0.0) -> float:
         """Coefficient ``name``."""
@@ -78,9 +80,17 @@ def ee_signals(t: Array, y: Array, u: Array | None, cutoff_hz: float | None = No
 
 
 def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
-             fixed_inertia: float) -> tuple[list[str], list[Array], list[tuple[float, float]],
-                                            Array]:
-    """Regressor columns (unfiltered), their bounds and the fixed-part target."""
+             fixed_inertia: float, terms: tuple[Term, ...] = ()
+             ) -> tuple[list[str], list[Array], list[tuple[float, float]], Array]:
+    """Regressor columns (unfiltered), their bounds and the fixed-part target.
+
+    With an actuator gain ``g`` (a scanned constant) the equation ``J a + ... = g u`` is
+    divided by ``g``: target ``u``, every coefficient fitted as ``coef / g`` within its bounds
+    divided by ``g``.  A free gain column instead lets the least squares shrink the whole
+    equation (inertia to its lower bound, the gain with it): a smaller residual that is only a
+    change of scale, once named on clean closed-loop data as a gain of 0.7 x the inertia's
+    nominal."""
+    g = _gain(sig, effects)
     x, v, a = sig.x, sig.v, sig.a
     eps = 0.02 * float(np.std(v)) + 1e-12
     sgn = np.tanh(v / eps)
@@ -95,7 +105,8 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
             continue
         names.append(term)
         cols.append(term_cols[term])
-        bnds.append(nominal.bounds(term))
+        lo_, hi_ = nominal.bounds(term)
+        bnds.append((lo_ / g, hi_ / g))
     if sig.u is None:
         target = target - fixed_inertia * a
     else:
@@ -107,14 +118,9 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
             ue = np.clip(ue, -s, s)
         if "actuator_lag" in effects:
             ue = lagged(sig.t, ue, effects["actuator_lag"])
-        if "actuator_gain" in effects:
-            names.append("actuator_gain")
-            cols.append(-ue)
-            bnds.append((1e-3, 100.0))
-        else:
-            target = target + ue
+        target = target + ue
         if "inertia" not in nominal.terms:
-            target = target - fixed_inertia * a
+            target = target - fixed_inertia / g * a
     extra_cols = {
         "coulomb_friction": (sgn, (0.0, math.inf)),
         "asymmetric_friction": ((v > 0).astype(float), (0.0, math.inf)),
@@ -138,20 +144,38 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
         names.append("stiction")
         cols.append(sgn * np.exp(-(v / vs) ** 2))
         bnds.append((0.0, math.inf))
+    for term in terms:   # an effort added to the load: J a = ... + c phi
+        names.append(term.key)
+        cols.append(-column(term, sig.t, x, v, sig.u))
+        bnds.append((-math.inf, math.inf))
     return names, cols, bnds, target
 
 
+SCANNED = ("dead_time", "actuator_lag", "actuator_saturation", "stiction", "actuator_gain")
+"""Effects whose constant is scanned on a grid (each counts as one parameter)."""
+
+
+def _gain(sig: EESignals, effects: dict[str, float]) -> float:
+    return effects.get("actuator_gain", 1.0) if sig.u is not None else 1.0
+
+
+def ee_rows(sig: EESignals) -> slice:
+    """The regression rows: decimated, the filter's transients at both ends left out."""
+    margin = int(3 * sig.fs_hz / sig.cutoff_hz) + 1
+    return slice(margin, len(sig.t) - margin, sig.step)
+
+
 def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | None = None,
-           fixed_inertia: float = 1.0) -> EEFit:
-    """Bounded linear least squares of the equation error with ``effects`` (name -> constant)."""
+           fixed_inertia: float = 1.0, terms: tuple[Term, ...] = ()) -> EEFit:
+    """Bounded linear least squares of the equation error with ``effects`` (name -> constant)
+    and library ``terms`` (a scanned wavenumber or delay counts as one more parameter)."""
     effects = effects or {}
-    names, cols, bnds, target = _columns(sig, nominal, effects, fixed_inertia)
+    names, cols, bnds, target = _columns(sig, nominal, effects, fixed_inertia, terms)
     fs, fc = sig.fs_hz, sig.cutoff_hz
     phi = np.column_stack([_filt(c, fs, fc) for c in cols]) if cols else np.zeros((len(target),
                                                                                      0))
     tgt = _filt(target, fs, fc)
-    margin = int(3 * fs / fc) + 1
-    rows = slice(margin, len(tgt) - margin, sig.step)
+    rows = ee_rows(sig)
     A, b = phi[rows], tgt[rows]
     if A.shape[1]:
         scale = np.maximum(np.sqrt(np.mean(A ** 2, axis=0)), 1e-300)
@@ -159,25 +183,25 @@ def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | Non
         hi = np.array([bd[1] for bd in bnds]) * scale
         res = optimize.lsq_linear(A / scale, b, bounds=(lo, hi), method="bvls")
         coef = res.x / scale
+        coef = coef * _gain(sig, effects)   # the physical coefficients (see _columns)
     else:
         coef = np.zeros(0)
-    resid_full = (phi @ coef - tgt) if A.shape[1] else -tgt
+    resid_full = (phi @ coef / _gain(sig, effects) - tgt) if A.shape[1] else -tgt
     r = resid_full[rows]
-    n_eff_params = len(names) + sum(1 for k in effects if k in ("dead_time", "actuator_lag",
-                                                                 "actuator_saturation",
-                                                                 "stiction"))
-    extra = tuple((k, v) for k, v in effects.items()
-                  if k in ("dead_time", "actuator_lag", "actuator_saturation", "stiction"))
+    n_eff_params = len(names) + sum(1 for k in effects if k in SCANNED) + sum(
+        1 for t in terms if t.kind in ("sin", "udelay"))
+    extra = tuple((k, v) for k, v in effects.items() if k in SCANNED)
     return EEFit(tuple(names), tuple(float(c) for c in coef), resid_full, float(r @ r), len(r),
-                 n_eff_params, extra)
+                 n_eff_params, extra, terms)
 
 
 def ee_effect_fit(sig: EESignals, nominal: AxisNominal, base: dict[str, float], name: str,
-                  grid: tuple[float, ...], fixed_inertia: float) -> EEFit:
+                  grid: tuple[float, ...], fixed_inertia: float,
+                  terms: tuple[Term, ...] = ()) -> EEFit:
     """Best equation-error fit of ``base`` plus effect ``name`` (grid over its constant)."""
     best: EEFit | None = None
     for g in grid:
-        fit = ee_fit(sig, nominal, {**base, name: g}, fixed_inertia)
+        fit = ee_fit(sig, nominal, {**base, name: g}, fixed_inertia, terms)
         if best is None or fit.rss < best.rss:
             best = fit
     assert best is not None
@@ -209,8 +233,9 @@ def ee_apply(sig: EESignals, nominal: AxisNominal, fit: EEFit, fixed_inertia: fl
     for n in fit.names:
         if n in EE_EFFECTS and n not in nominal.terms and n not in effects:
             effects[n] = 1.0
-    names, cols, _, target = _columns(sig, nominal, effects, fixed_inertia)
-    coef = dict(zip(fit.names, fit.coef, strict=True))
+    names, cols, _, target = _columns(sig, nominal, effects, fixed_inertia, fit.terms)
+    gain = _gain(sig, effects)
+    coef = {n: c / gain for n, c in zip(fit.names, fit.coef, strict=True)}
     fs, fc = sig.fs_hz, sig.cutoff_hz
     total = sum((coef[n] * _filt(c, fs, fc) for n, c in zip(names, cols, strict=True)),
                 np.zeros(len(target)))

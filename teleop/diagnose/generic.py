@@ -16,6 +16,7 @@ import numpy as np
 from scipy import optimize
 
 from teleop.diagnose import criterion as crit
+from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
 from teleop.diagnose.candidates import explanation, neutral
 from teleop.diagnose.diagnose import EffectResult, nrmse
@@ -38,8 +39,17 @@ class GenericDiagnosis:
     y_final: Array
 
 
+@dataclass(frozen=True)
+class _StaticFit:
+    effects: tuple[str, ...]
+    x: Array
+    rss: float
+    sd: Array
+    residual: Array
+
+
 def _fit(model: NominalModel, t: Array, u: Array | None, y: Array, effects: tuple[str, ...],
-         start: Array, lo: Array, hi: Array) -> tuple[Array, float, Array]:
+         start: Array, lo: Array, hi: Array) -> _StaticFit:
     k = len(model.param_names())
 
     def eff_of(x: Array) -> EffectSet:
@@ -61,7 +71,49 @@ def _fit(model: NominalModel, t: Array, u: Array | None, y: Array, effects: tupl
         sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     except (np.linalg.LinAlgError, ValueError):
         sd = np.full(len(res.x), math.nan)
-    return res.x, float(r @ r), sd
+    return _StaticFit(effects, res.x, float(r @ r), sd, r)
+
+
+@dataclass(frozen=True)
+class StaticPath:
+    """Static points for the engine (:mod:`teleop.diagnose.engine`): every candidate fitted from
+    each of its start values; no held-out part (the score alone decides)."""
+
+    model: NominalModel
+    t: Array
+    u: Array | None
+    y: Array
+    starts: dict[str, tuple[float, ...]]
+    effect_bounds: dict[str, tuple[float, float]]
+
+    def rss(self, f: _StaticFit) -> float:
+        return f.rss
+
+    def residual(self, f: _StaticFit) -> Array:
+        return f.residual
+
+    def k_added(self, base: _StaticFit, f: _StaticFit) -> int:
+        return len(f.effects) - len(base.effects)
+
+    def at_floor(self, current: _StaticFit, n_chosen: int) -> bool:
+        return False
+
+    def holdout(self, current: _StaticFit, name: str, f: _StaticFit) -> tuple[float, bool]:
+        return math.nan, True   # a few static points: nothing to hold out
+
+    def fit_candidates(self, current: _StaticFit, names: tuple[str, ...]
+                       ) -> list[tuple[str, _StaticFit]]:
+        lo0, hi0 = self.model.bounds()
+        out = []
+        for c in names:
+            eff = current.effects + (c,)
+            lo = np.concatenate([lo0, [self.effect_bounds[e][0] for e in eff]])
+            hi = np.concatenate([hi0, [self.effect_bounds[e][1] for e in eff]])
+            fits = [_fit(self.model, self.t, self.u, self.y, eff,
+                         np.concatenate([current.x, [z0]]), lo, hi)
+                    for z0 in self.starts.get(c, (neutral(c),))]
+            out.append((c, min(fits, key=lambda f: f.rss)))
+        return out
 
 
 def diagnose_model(model: NominalModel, t: Array, u: Array | None, y: Array, noise_std: float,
@@ -69,47 +121,23 @@ def diagnose_model(model: NominalModel, t: Array, u: Array | None, y: Array, noi
                                                                                          float]],
                    criterion: crit.Criterion = crit.DEFAULT, max_effects: int = 2
                    ) -> GenericDiagnosis:
-    """Fit the nominal model, then each candidate effect; keep what lowers the BIC enough."""
+    """Fit the nominal model, then select effects by the engine (known noise; the static
+    points are independent equilibria, so ``n_eff = n``)."""
     n = len(y)
     names = model.param_names()
     lo0, hi0 = model.bounds()
-    x_nom, rss_nom, _ = _fit(model, t, u, y, (), model.initial(), lo0, hi0)
-
-    def score(rss0: float, rss1: float) -> float:
-        return crit.score(rss0, rss1, n, 1, float(n), noise_std)
-
-    current_eff: tuple[str, ...] = ()
-    current_x = x_nom
-    current_rss = rss_nom
-    chosen: list[EffectResult] = []
-    ranking: list[tuple[str, float]] = []
-    cands = [c for c in model.candidates() if c in CATALOG]
-    while cands and len(chosen) < max_effects:
-        fits = []
-        for c in cands:
-            best = None
-            for z0 in starts.get(c, (neutral(c),)):
-                eff = current_eff + (c,)
-                x0 = np.concatenate([current_x, [z0]])
-                lo = np.concatenate([lo0, [effect_bounds[e][0] for e in eff]])
-                hi = np.concatenate([hi0, [effect_bounds[e][1] for e in eff]])
-                x, rss, sd = _fit(model, t, u, y, eff, x0, lo, hi)
-                if best is None or rss < best[1]:
-                    best = (x, rss, sd)
-            assert best is not None
-            fits.append((score(current_rss, best[1]), c, best))
-        fits.sort(key=lambda f: -f[0])
-        if not chosen:
-            ranking = [(c, d) for d, c, _ in fits]
-        dbic, c, (x, rss, sd) = fits[0]
-        if dbic < criterion.min_score:
-            break
-        val = float(x[-1])
-        chosen.append(EffectResult(c, ((c, val),), ((c, float(sd[-1])),), dbic, math.nan,
-                                   explanation(c, val)))
-        current_eff, current_x = current_eff + (c,), x
-        current_rss = rss
-        cands = [k for k in cands if k != c]
+    nom = _fit(model, t, u, y, (), model.initial(), lo0, hi0)
+    path = StaticPath(model, t, u, y, starts, effect_bounds)
+    sel = engine.forward(path, nom, tuple(c for c in model.candidates() if c in CATALOG),
+                         max_effects, engine.Rule(noise=noise_std, n_eff=float(n),
+                                                  criterion=criterion))
+    chosen = []
+    for st in sel.steps:
+        val = float(st.fit.x[-1])
+        chosen.append(EffectResult(st.name, ((st.name, val),),
+                                   ((st.name, float(st.fit.sd[-1])),), st.verdict.score,
+                                   math.nan, explanation(st.name, val)))
+    x_nom, current_x, current_eff = nom.x, sel.final.x, sel.final.effects
     k = len(names)
     eff = EffectSet()
     for name, v in zip(current_eff, current_x[k:], strict=True):
@@ -119,5 +147,5 @@ def diagnose_model(model: NominalModel, t: Array, u: Array | None, y: Array, noi
     final = tuple(zip(names, (float(v) for v in current_x[:k]), strict=True)) + tuple(
         (e, float(v)) for e, v in zip(current_eff, current_x[k:], strict=True))
     return GenericDiagnosis(tuple(zip(names, (float(v) for v in x_nom), strict=True)), final,
-                            tuple(chosen), tuple(ranking), nrmse(y, y_nom), nrmse(y, y_fin), y,
+                            tuple(chosen), sel.ranking, nrmse(y, y_nom), nrmse(y, y_fin), y,
                             y_nom, y_fin)

@@ -23,22 +23,16 @@ import math
 
 import numpy as np
 
-from teleop.diagnose import criterion as crit
+from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.equation_error import EESignals, _filt, model_equation_error
-from teleop.diagnose.fit import NUMERIC_FAILURES, FitData, ModelFit, build, fit_model
+from teleop.diagnose.equation_error import EESignals, _filt, ee_rows, model_equation_error
+from teleop.diagnose.fit import NUMERIC_FAILURES, ModelFit, build, fit_model
 from teleop.diagnose.library import PREFIX, WAVE, Term, column, resolve
-from teleop.diagnose.model import AxisNominal
-from teleop.diagnose.results import DiagnoseOptions, EffectResult, ProposedTerm
-from teleop.diagnose.select import _holdout_gain, informative, select_oe
+from teleop.diagnose.results import EffectResult, ProposedTerm
+from teleop.diagnose.select import OEPath, select_oe
 
 STLSQ_SHARE = 0.1
 DELAYS_S = (0.005, 0.01, 0.02, 0.05, 0.1)
-
-
-def _rows(sig: EESignals) -> slice:
-    margin = int(3 * sig.fs_hz / sig.cutoff_hz) + 1
-    return slice(margin, len(sig.t) - margin, sig.step)
 
 
 def _cols(sig: EESignals, group: tuple[Term, ...]) -> Array:
@@ -48,7 +42,7 @@ def _cols(sig: EESignals, group: tuple[Term, ...]) -> Array:
 
 def _best(sig: EESignals, e: Array, groups: list[tuple[Term, ...]]) -> tuple[Term, ...]:
     """The group of a scanned family that explains most of ``e``."""
-    rows = _rows(sig)
+    rows = ee_rows(sig)
     best, best_g = math.inf, groups[0]
     for g in groups:
         a = _cols(sig, g)[rows]
@@ -61,7 +55,7 @@ def _best(sig: EESignals, e: Array, groups: list[tuple[Term, ...]]) -> tuple[Ter
 
 def candidate_groups(sig: EESignals, e: Array) -> list[tuple[Term, ...]]:
     """One representative of every library family for residual ``e``."""
-    x = sig.x[_rows(sig)]
+    x = sig.x[ee_rows(sig)]
     span = float(np.ptp(x)) or 1.0
     noise = float(np.std(np.diff(sig.x))) or 1e-6
     w_lo, w_hi = 3 * math.pi / span, min(0.3 / noise, 200 * math.pi / span)
@@ -107,11 +101,11 @@ def stlsq(a: Array, b: Array, owner: list[int], share: float = STLSQ_SHARE,
     return coef / scale
 
 
-def _ranked(sig: EESignals, e: Array) -> list[tuple[tuple[Term, ...], tuple[float, ...],
+def ranked_terms(sig: EESignals, e: Array) -> list[tuple[tuple[Term, ...], tuple[float, ...],
                                                       float]]:
     """Library groups STLSQ keeps for residual ``e``, largest contribution first."""
     groups = candidate_groups(sig, e)
-    rows = _rows(sig)
+    rows = ee_rows(sig)
     cols = [_cols(sig, g)[rows] for g in groups]
     owner = [i for i, g in enumerate(groups) for _ in g]
     a = np.column_stack(cols)
@@ -126,31 +120,32 @@ def _ranked(sig: EESignals, e: Array) -> list[tuple[tuple[Term, ...], tuple[floa
     return sorted(out, key=lambda r: -r[2])
 
 
-def propose(data: FitData, nominal: AxisNominal, nom: ModelFit, final: ModelFit,
-            sig: EESignals, opts: DiagnoseOptions, noise: float
+def propose(path: OEPath, nom: ModelFit, final: ModelFit
             ) -> tuple[ModelFit, tuple[ProposedTerm, ...]]:
     """Library terms for the force-domain residual of ``final`` (the model with the chosen
     catalog effects), each judged by the rule against the nominal model ``nom`` with the terms
     accepted before it; returns that model and the terms (``final`` and none when nothing
     passes)."""
+    data, nominal, sig, opts = path.data, path.nominal, path.sig, path.opts
+    rule = engine.Rule(criterion=opts.criterion)
     p, eff = build(final.names, final.theta, data)
     e = model_equation_error(sig, p, eff)    # J a - modelled efforts: the effort it lacks
     current = nom
     accepted: list[ProposedTerm] = []
-    for group, coefs, _ in _ranked(sig, e):
+    for group, coefs, _ in ranked_terms(sig, e):
         start = {**current.as_dict(), **{t.key: c for t, c in zip(group, coefs, strict=True)}}
         if group[0].kind == "sin":   # its wavenumber is refined by the simulation fit
             start[f"{WAVE}{group[0].const:.6g}"] = group[0].const
         try:
             f = fit_model(data, nominal, start, current.effects, opts.max_nfev * 4)
-            gain, rms0 = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
         except NUMERIC_FAILURES:
             continue
-        k = len(group) + (1 if group[0].kind in ("sin", "udelay") else 0)  # + scanned const
-        v = crit.judge(current.rss, f.rss, f.y_fit - data.y, k, gain, informative(rms0, noise),
-                       criterion=opts.criterion)
-        if v.accepted:
-            accepted.append(ProposedTerm(tuple(t.key for t in group), coefs, v.score, gain))
+        key = group[0].key
+        step, _ = engine.accept_first(path, current,
+                                      [(engine.score(path, current, f, rule), key, f)], rule)
+        if step is not None:
+            accepted.append(ProposedTerm(tuple(t.key for t in group), coefs,
+                                         step.verdict.score, step.verdict.holdout_gain))
             current = f
     if not accepted:
         return final, ()
@@ -166,23 +161,20 @@ def final_terms(fit: ModelFit, accepted: tuple[ProposedTerm, ...]) -> tuple[Prop
                  for t in accepted)
 
 
-def select_with_library(data: FitData, nominal: AxisNominal, nom: ModelFit,
-                        opts: DiagnoseOptions, names: tuple[str, ...], sig: EESignals,
-                        fixed_inertia: float, noise: float
+def select_with_library(path: OEPath, nom: ModelFit
                         ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]],
-                                   tuple[ProposedTerm, ...]]:
+                                   tuple[ProposedTerm, ...], tuple[str, ...]]:
     """Catalog selection (:func:`select.select_oe`); then, while the residual stays above the
     noise, library terms (:func:`propose`) and the catalog selected again on top of them,
     unless they leave only noise (``select_oe``'s own stopping rule)."""
-    final, chosen, ranking = select_oe(data, nominal, nom, opts, names, sig, fixed_inertia,
-                                       noise)
+    opts, noise = path.opts, path.noise
+    final, chosen, ranking, amb = select_oe(path, nom)
     if math.sqrt(final.rss / final.n) < opts.noise_factor * noise:
-        return final, chosen, ranking, ()
-    base, proposed = propose(data, nominal, nom, final, sig, opts, noise)
+        return final, chosen, ranking, (), amb
+    base, proposed = propose(path, nom, final)
     if not proposed:
-        return final, chosen, ranking, ()
-    final, chosen = base, []
+        return final, chosen, ranking, (), amb
+    final, chosen, amb = base, [], ()
     if math.sqrt(base.rss / base.n) >= opts.noise_factor * noise:
-        final, chosen, _ = select_oe(data, nominal, base, opts, names, sig, fixed_inertia,
-                                     noise)
-    return final, chosen, ranking, final_terms(final, proposed)
+        final, chosen, _, amb = select_oe(path, base)
+    return final, chosen, ranking, final_terms(final, proposed), amb

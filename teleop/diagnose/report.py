@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from teleop.diagnose.ambiguity import ambiguous
 from teleop.diagnose.criterion import unexplained
 from teleop.diagnose.diagnose import Diagnosis
 from teleop.diagnose.library import equation
@@ -41,7 +40,7 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
         "residual": {"before": _stats(d.residual_before), "after": _stats(d.residual_after)},
         "selection": "penalised likelihood (effective sample size) + held-out gain",
         "unexplained": _warning(d),
-        "ambiguous": ambiguous(d.effects[0].name, d.ranking) if d.effects else [],
+        "ambiguous": list(d.ambiguous),
     }
     out["proposed"] = [{"term": ",".join(p.keys), "keys": list(p.keys),
                         "coefs": list(p.coefs), "score": p.score,
@@ -86,7 +85,7 @@ def to_text(d: Diagnosis, source: str = "") -> str:
             lines.append(f"     {e.explanation}")
         if _warning(d):
             lines.append(f"WARNING: {_warning(d)}")
-        lines += [f"note: {a}" for a in ambiguous(d.effects[0].name, d.ranking)]
+        lines += [f"note: {a}" for a in d.ambiguous]
     elif d.proposed:
         lines.append("missing physics: no catalog effect (the terms below explain it)")
     elif d.residual_after.rms_over_noise < 3.0:
@@ -97,8 +96,9 @@ def to_text(d: Diagnosis, source: str = "") -> str:
                      f"residual is {d.residual_after.rms_over_noise:.0f}x the noise (physics "
                      f"outside the catalog, or a start-up transient)")
     if d.proposed:
+        held = "simulation" if d.analysis == "output-error" else "inverse dynamics"
         lines.append("physics outside the catalog, proposed by sparse regression on the "
-                     "force-domain residual and kept by held-out simulation:")
+                     f"force-domain residual and kept by held-out {held}:")
         for p in d.proposed:
             lines.append(f"  {_equation(p, d.units)}")
             lines.append(f"     score {p.score:.1f}, held-out gain {p.holdout_gain:.1%}")

@@ -94,6 +94,7 @@ class Diagnosis:
     traces: Traces
     proposed: tuple[ProposedTerm, ...] = ()   # library terms outside the catalog
     units: tuple[str, str] = ("effort units", "position units")
+    ambiguous: tuple[str, ...] = ()           # pairs of effects the data cannot separate
 
 
 def nrmse(y: Array, y_hat: Array) -> float:

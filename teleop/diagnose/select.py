@@ -4,12 +4,13 @@ with held-out checks, backward elimination; output-error and equation-error vari
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from teleop.diagnose import candidates as cand
-from teleop.diagnose import criterion as crit
+from teleop.diagnose import engine
+from teleop.diagnose.axis_model import Array
 from teleop.diagnose.equation_error import (
     EE_EFFECTS,
     EESignals,
@@ -24,9 +25,11 @@ from teleop.diagnose.fit import (
     scan_effect,
     simulate,
 )
+from teleop.diagnose.library import Term
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.results import DiagnoseOptions, EffectResult
 
+UDELAY = Term("udelay").key.rsplit(":", 1)[0]   # "term:udelay"
 HOLDOUT_FLOOR = 2.0   # noise levels (twice the floor, as the finger path)
 
 
@@ -43,13 +46,6 @@ def _effect_params(name: str, fit: ModelFit, data: FitData) -> tuple[tuple[tuple
     if name == "stiction":
         params.append(("stribeck_velocity", fit.value("stribeck_velocity")))
     return tuple(params), tuple(stds)
-
-
-def _score(base: ModelFit, aug: ModelFit, data: FitData) -> float:
-    """The shared rule's penalised likelihood gain of ``aug`` over ``base``."""
-    r = aug.y_fit - data.y
-    n = int(np.sum(np.isfinite(r)))
-    return crit.score(base.rss, aug.rss, n, aug.n_params - base.n_params, crit.effective_n(r))
 
 
 def _holdout_gain(data: FitData, nominal: AxisNominal, base: ModelFit, aug: ModelFit,
@@ -125,24 +121,48 @@ def _best_start(data: FitData, nominal: AxisNominal, current: ModelFit, name: st
     return best_s
 
 
-def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: DiagnoseOptions,
-               names: tuple[str, ...], sig: EESignals, fixed_inertia: float, noise: float
-               ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]]]:
-    current = nom
-    chosen: list[EffectResult] = []
-    ranking: list[tuple[str, float]] = []
-    remaining = list(names)
-    while remaining and len(chosen) < opts.max_effects:
+@dataclass(frozen=True)
+class OEPath:
+    """The axis output-error path for the engine (:mod:`teleop.diagnose.engine`)."""
+
+    data: FitData
+    nominal: AxisNominal
+    opts: DiagnoseOptions
+    names: tuple[str, ...]
+    sig: EESignals
+    fixed_inertia: float
+    noise: float
+
+    def rss(self, f: ModelFit) -> float:
+        return f.rss
+
+    def residual(self, f: ModelFit) -> Array:
+        return f.y_fit - self.data.y
+
+    def k_added(self, base: ModelFit, f: ModelFit) -> int:
+        """Fitted parameters added, and a library term's delay (scanned on a grid, not
+        fitted: it counts as a parameter too)."""
+        scanned = sum(1 for k in f.names if k.startswith(UDELAY) and k not in base.names)
+        return f.n_params - base.n_params + scanned
+
+    def at_floor(self, current: ModelFit, n_chosen: int) -> bool:
         rms = math.sqrt(current.rss / current.n)
-        if rms < opts.noise_factor * noise and chosen:
-            break  # what is left is measurement noise
-        if len(names) > opts.screen_above:
-            remaining = list(_screen(sig, nominal, tuple(remaining), fixed_inertia,
-                                     data.scales, opts.screen_top, current))
-        fits: list[tuple[float, str, ModelFit]] = []
-        for name in remaining:
+        return n_chosen > 0 and rms < self.opts.noise_factor * self.noise
+
+    def holdout(self, current: ModelFit, name: str, f: ModelFit) -> tuple[float, bool]:
+        gain, rms0 = _holdout_gain(self.data, self.nominal, current, f, self.opts.max_nfev // 2)
+        return gain, informative(rms0, self.noise)
+
+    def fit_candidates(self, current: ModelFit, names: tuple[str, ...]
+                       ) -> list[tuple[str, ModelFit]]:
+        data, nominal, opts = self.data, self.nominal, self.opts
+        if len(self.names) > opts.screen_above:
+            names = _screen(self.sig, nominal, names, self.fixed_inertia, data.scales,
+                            opts.screen_top, current)
+        out = []
+        for name in names:
             try:
-                start = _best_start(data, nominal, current, name, sig, fixed_inertia)
+                start = _best_start(data, nominal, current, name, self.sig, self.fixed_inertia)
                 f = fit_model(data, nominal, start, current.effects + (name,), opts.max_nfev)
                 z_neutral = cand.neutral(name)
                 if f.rss > current.rss and math.isfinite(z_neutral):
@@ -152,43 +172,42 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
                                   current.effects + (name,), opts.max_nfev)
             except NUMERIC_FAILURES:
                 continue  # a candidate whose fit fails numerically is disqualified
-            fits.append((_score(current, f, data), name, f))
-        fits.sort(key=lambda x: -x[0])
-        # refine the leading candidates fully before choosing (quick fits rank roughly)
+            out.append((name, f))
+        return out
+
+    def refine(self, current: ModelFit, fits: list[tuple[float, str, ModelFit]]
+               ) -> list[tuple[float, str, ModelFit]]:
+        """Refine the leading candidates fully before choosing (quick fits rank roughly)."""
+        top = self.opts.refine_top
         refined = []
-        for dbic, name, f in fits[: opts.refine_top]:
-            if dbic >= opts.criterion.min_score:
+        for s, name, f in fits[:top]:
+            if s >= self.opts.criterion.min_score:
                 try:
-                    f2 = fit_model(data, nominal, f.as_dict(), f.effects, opts.max_nfev * 4)
-                    f, dbic = f2, _score(current, f2, data)
+                    f2 = fit_model(self.data, self.nominal, f.as_dict(), f.effects,
+                                   self.opts.max_nfev * 4)
+                    f, s = f2, engine.score(self, current, f2)
                 except NUMERIC_FAILURES:
                     pass  # keep the quick fit
-            refined.append((dbic, name, f))
-        fits = sorted(refined + fits[opts.refine_top:], key=lambda x: -x[0])
-        if not chosen:
-            ranking = [(n, d) for d, n, _ in fits]
-        accepted = False
-        for dbic, name, f in fits:
-            if dbic < opts.criterion.min_score:
-                break
-            try:
-                gain, rms0 = _holdout_gain(data, nominal, current, f, opts.max_nfev // 2)
-            except NUMERIC_FAILURES:
-                continue
-            if not crit.judge(current.rss, f.rss, f.y_fit - data.y, f.n_params - current.n_params,
-                              gain, informative(rms0, noise),
-                              criterion=opts.criterion).accepted:
-                continue
-            p, s = _effect_params(name, f, data)
-            chosen.append(EffectResult(name, p, s, dbic, gain, cand.explanation(name, p[0][1])))
-            current = f
-            remaining = [n for n in names if n not in current.effects]
-            accepted = True
-            break
-        if not accepted:
-            break
+            refined.append((s, name, f))
+        return refined + fits[top:]
+
+
+def select_oe(path: OEPath, nom: ModelFit
+              ) -> tuple[ModelFit, list[EffectResult], list[tuple[str, float]], tuple[str, ...]]:
+    """Forward selection by the engine, then backward elimination; every effect's value as it
+    stands in the final (joint) model.  Returns the final fit, the effects, the first step's
+    ranking (effect, score) and the ambiguity notes."""
+    data, opts = path.data, path.opts
+    sel = engine.forward(path, nom, path.names, opts.max_effects,
+                         engine.Rule(criterion=opts.criterion), rank=path.refine)
+    current = sel.final
+    chosen = []
+    for st in sel.steps:
+        p, s = _effect_params(st.name, st.fit, data)
+        chosen.append(EffectResult(st.name, p, s, st.verdict.score, st.verdict.holdout_gain,
+                                   cand.explanation(st.name, p[0][1])))
     if len(chosen) > 1:
-        current, chosen = _prune(data, nominal, current, chosen, opts)
+        current, chosen = _prune(path, current, chosen)
         # report every effect's value as it stands in the final (joint) model
         final = []
         for e in chosen:
@@ -196,12 +215,13 @@ def select_oe(data: FitData, nominal: AxisNominal, nom: ModelFit, opts: Diagnose
             final.append(replace(e, params=p, std=s, explanation=cand.explanation(e.name,
                                                                                  p[0][1])))
         chosen = final
-    return current, chosen, ranking
+    return current, chosen, list(sel.ranking), sel.ambiguous
 
 
-def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[EffectResult],
-           opts: DiagnoseOptions) -> tuple[ModelFit, list[EffectResult]]:
-    """Backward elimination: drop an effect the others make redundant (delta BIC too small)."""
+def _prune(path: OEPath, full: ModelFit, chosen: list[EffectResult]
+           ) -> tuple[ModelFit, list[EffectResult]]:
+    """Backward elimination: drop an effect the others make redundant (score too small)."""
+    data, nominal, opts = path.data, path.nominal, path.opts
     changed = True
     while changed and len(chosen) > 1:
         changed = False
@@ -213,7 +233,7 @@ def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[Eff
                 reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
             except NUMERIC_FAILURES:
                 continue  # cannot test this removal: keep the effect
-            if _score(reduced, full, data) < opts.criterion.min_score:
+            if engine.score(path, reduced, full) < opts.criterion.min_score:
                 chosen = [c for c in chosen if c.name != e.name]
                 full = reduced
                 changed = True
@@ -222,7 +242,8 @@ def _prune(data: FitData, nominal: AxisNominal, full: ModelFit, chosen: list[Eff
 
 
 def _ee_grids(scales: cand.Scales) -> dict[str, tuple[float, ...]]:
-    return {"dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
+    return {"actuator_gain": tuple(float(g) for g in np.geomspace(0.4, 2.5, 37)),
+            "dead_time": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.15, 0.2),
             "actuator_lag": (0.005, 0.01, 0.02, 0.04, 0.07, 0.1, 0.2, 0.4),
             "actuator_saturation": tuple(f * scales.umax for f in (0.3, 0.4, 0.5, 0.6, 0.7,
                                                                   0.8, 0.9)),

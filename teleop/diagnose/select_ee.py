@@ -5,11 +5,13 @@ models fitted on the first 70 % of the recording and judged on the last 30 %."""
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from teleop.diagnose import candidates as cand
-from teleop.diagnose import criterion as crit
+from teleop.diagnose import engine
+from teleop.diagnose.axis_model import Array
 from teleop.diagnose.equation_error import (
     EE_EFFECTS,
     EEFit,
@@ -17,19 +19,12 @@ from teleop.diagnose.equation_error import (
     ee_apply,
     ee_effect_fit,
     ee_fit,
+    ee_rows,
 )
 from teleop.diagnose.fit import NUMERIC_FAILURES
+from teleop.diagnose.library import Term
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.results import DiagnoseOptions, EffectResult
-from teleop.diagnose.select import _ee_grids
-
-
-def _ee_score(base: EEFit, aug: EEFit, sig: EESignals) -> float:
-    """The shared rule's score on the equation-error rows (decimated residual)."""
-    r = aug.residual[::max(sig.step, 1)]
-    r = r[np.isfinite(r)]
-    return crit.score(base.rss, aug.rss, aug.n, aug.n_params - base.n_params,
-                      min(crit.effective_n(r), float(aug.n)))
 
 
 def _ee_slice(sig: EESignals, sl: slice) -> EESignals:
@@ -37,15 +32,17 @@ def _ee_slice(sig: EESignals, sl: slice) -> EESignals:
                      None if sig.u is None else sig.u[sl], sig.fs_hz, sig.cutoff_hz, sig.step)
 
 
-def _ee_holdout(sig: EESignals, nominal: AxisNominal, base: dict[str, float], name: str,
+def _ee_holdout(sig: EESignals, nominal: AxisNominal, cur: EEState, aug: EEState, name: str,
                 grid: tuple[float, ...], fixed_inertia: float) -> float:
-    """Held-out gain: both models fitted on the first 70 %, effort error on the last 30 %."""
+    """Held-out gain: both models fitted on the first 70 %, effort error on the last 30 % (a
+    catalog effect's constant scanned on its grid again; a library term's constant kept)."""
     n = len(sig.t)
     cut = int(0.7 * n)
     m = int(3 * sig.fs_hz / sig.cutoff_hz)
     train, test = _ee_slice(sig, slice(0, cut)), _ee_slice(sig, slice(cut, n))
-    b = ee_fit(train, nominal, base, fixed_inertia)
-    a = ee_effect_fit(train, nominal, base, name, grid, fixed_inertia)
+    b = ee_fit(train, nominal, cur.base, fixed_inertia, cur.terms)
+    a = (ee_effect_fit(train, nominal, cur.base, name, grid, fixed_inertia, cur.terms)
+         if name in EE_EFFECTS else ee_fit(train, nominal, aug.base, fixed_inertia, aug.terms))
     errs = []
     for f in (b, a):
         r = ee_apply(test, nominal, f, fixed_inertia)[m: len(test.t) - m]
@@ -53,62 +50,84 @@ def _ee_holdout(sig: EESignals, nominal: AxisNominal, base: dict[str, float], na
     return 1.0 - errs[1] / errs[0] if errs[0] > 0 else 0.0
 
 
-def select_ee(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions, names: tuple[str, ...],
-               fixed_inertia: float, scales: cand.Scales
-               ) -> tuple[EEFit, EEFit, list[EffectResult], list[tuple[str, float]]]:
-    grids = _ee_grids(scales)
-    base: dict[str, float] = {}
-    nom = ee_fit(sig, nominal, base, fixed_inertia)
-    current = nom
-    chosen: list[EffectResult] = []
-    ranking: list[tuple[str, float]] = []
-    remaining = [n for n in names if n in EE_EFFECTS]
-    while remaining and len(chosen) < opts.max_effects:
-        fits = []
-        for name in remaining:
+@dataclass(frozen=True)
+class EEState:
+    """An equation-error fit and the effect constants and library terms it was fitted with."""
+
+    fit: EEFit
+    base: dict[str, float]
+    terms: tuple[Term, ...] = ()
+
+
+@dataclass(frozen=True)
+class EEPath:
+    """The equation-error path for the engine (:mod:`teleop.diagnose.engine`): the score on
+    the regression rows, held-out gain on the last 30 % of the recording."""
+
+    sig: EESignals
+    nominal: AxisNominal
+    fixed_inertia: float
+    grids: dict[str, tuple[float, ...]]
+
+    def rss(self, f: EEState) -> float:
+        return f.fit.rss
+
+    def residual(self, f: EEState) -> Array:
+        return f.fit.residual[ee_rows(self.sig)]
+
+    def k_added(self, base: EEState, f: EEState) -> int:
+        return f.fit.n_params - base.fit.n_params
+
+    def at_floor(self, current: EEState, n_chosen: int) -> bool:
+        return False  # the effort residual has no noise floor of its own: the rule decides
+
+    def holdout(self, current: EEState, name: str, f: EEState) -> tuple[float, bool]:
+        return _ee_holdout(self.sig, self.nominal, current, f, name,
+                           self.grids.get(name, (1.0,)), self.fixed_inertia), True
+
+    def fit_candidates(self, current: EEState, names: tuple[str, ...]
+                       ) -> list[tuple[str, EEState]]:
+        out = []
+        for name in names:
+            if name not in EE_EFFECTS:
+                continue
             try:
-                f = ee_effect_fit(sig, nominal, base, name, grids.get(name, (1.0,)),
-                                  fixed_inertia)
+                f = ee_effect_fit(self.sig, self.nominal, current.base, name,
+                                  self.grids.get(name, (1.0,)), self.fixed_inertia,
+                                  current.terms)
             except NUMERIC_FAILURES:
                 continue  # disqualified
-            if not math.isfinite(f.bic):
-                continue
-            fits.append((_ee_score(current, f, sig), name, f))
-        fits.sort(key=lambda x: -x[0])
-        if not chosen:
-            ranking = [(n, d) for d, n, _ in fits]
-        pick = None
-        for dbic, name, f in fits:
-            if dbic < opts.criterion.min_score:
-                break
-            try:
-                gain = _ee_holdout(sig, nominal, base, name, grids.get(name, (1.0,)),
-                                   fixed_inertia)
-            except NUMERIC_FAILURES:
-                continue
-            r = f.residual[::max(sig.step, 1)]
-            if crit.judge(current.rss, f.rss, r, f.n_params - current.n_params, gain,
-                          criterion=opts.criterion).accepted:
-                pick = (dbic, name, f, gain)
-                break
-        if pick is None:
-            break
-        dbic, name, f, gain = pick
-        extra = dict(f.extra)
-        if name in extra:
-            val = extra[name] if name != "stiction" else f.get("stiction")
-        else:
-            val = f.get(name)
-        if name == "sensor_offset":
-            k = f.get("stiffness") + f.get("gravity")
-            val = val / k if k else val
-        params = [(name, val)] + ([("stribeck_velocity", extra["stiction"])]
-                                  if name == "stiction" else []) + (
-            [("asymmetric_viscous", f.get("asymmetric_viscous"))]
-            if name == "asymmetric_friction" else [])
-        chosen.append(EffectResult(name, tuple(params), ((name, math.nan),), dbic, gain,
-                                   cand.explanation(name, val)))
-        base = {**base, name: extra.get(name, 1.0)}
-        current = f
-        remaining = [n for d, n, _ in fits if n != name and d >= opts.criterion.min_score]
-    return nom, current, chosen, ranking
+            if math.isfinite(f.bic):
+                out.append((name, EEState(f, {**current.base,
+                                              name: dict(f.extra).get(name, 1.0)},
+                                          current.terms)))
+        return out
+
+
+def _effect_result(name: str, f: EEFit, score: float, gain: float) -> EffectResult:
+    extra = dict(f.extra)
+    if name in extra:
+        val = extra[name] if name != "stiction" else f.get("stiction")
+    else:
+        val = f.get(name)
+    if name == "sensor_offset":
+        k = f.get("stiffness") + f.get("gravity")
+        val = val / k if k else val
+    params = [(name, val)] + ([("stribeck_velocity", extra["stiction"])]
+                              if name == "stiction" else []) + (
+        [("asymmetric_viscous", f.get("asymmetric_viscous"))]
+        if name == "asymmetric_friction" else [])
+    return EffectResult(name, tuple(params), ((name, math.nan),), score, gain,
+                        cand.explanation(name, val))
+
+
+def catalog_ee(path: EEPath, start: EEState, opts: DiagnoseOptions, names: tuple[str, ...]
+               ) -> tuple[EEState, list[EffectResult], list[tuple[str, float]], tuple[str, ...]]:
+    """Forward selection of catalog effects by the engine on the equation error, from
+    ``start``: the final state, the effects, the first step's ranking (effect, score) and the
+    ambiguity notes."""
+    sel = engine.forward(path, start, names, opts.max_effects,
+                         engine.Rule(criterion=opts.criterion))
+    chosen = [_effect_result(st.name, st.fit.fit, st.verdict.score, st.verdict.holdout_gain)
+              for st in sel.steps]
+    return sel.final, chosen, list(sel.ranking), sel.ambiguous

@@ -15,12 +15,13 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
 
-from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, judge, unexplained
+from teleop.diagnose import engine
+from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, unexplained
 
 Array = np.ndarray
 
@@ -72,6 +73,8 @@ class DynamicDiagnosis:
     verdicts: tuple[Verdict, ...] = ()             # of the chosen effects
     rejected: tuple[tuple[str, str], ...] = ()     # (effect, why) of the best refused ones
     warning: str | None = None                     # unexplained residual
+    scores: tuple[tuple[str, float], ...] = ()     # (effect, the rule's score), fitted ones
+    ambiguous: tuple[str, ...] = ()                # pairs the data cannot separate
 
 
 def _say(progress: Callable[[str], None] | None, msg: str) -> None:
@@ -99,10 +102,77 @@ def _rms(rss: float, n: int) -> float:
     return math.sqrt(rss / max(n, 1))
 
 
+@dataclass
+class SimPath:
+    """A simulated model's path for the engine (:mod:`teleop.diagnose.engine`): candidates
+    screened on a value grid with the current model held, the best ``refine_top`` fitted
+    jointly with the refined nominal parameters; held-out gain on the interleaved blocks the
+    fit never sees.  ``screened`` logs the first step's screening (effect, relative RSS
+    reduction) for the report."""
+
+    model: SimulatedModel
+    refine_top: int
+    floor_factor: float
+    progress: Callable[[str], None] | None
+    nom0: tuple[float, ...]
+    floor: float
+    n_train: int
+    n_test: int
+    screened: list[tuple[str, float]] = field(default_factory=list)
+
+    def rss(self, f: Any) -> float:
+        return float(f.rss)
+
+    def residual(self, f: Any) -> Array:
+        return self.model.residual(f)
+
+    def k_added(self, base: Any, f: Any) -> int:
+        return len(f.effects) - len(base.effects)
+
+    def at_floor(self, current: Any, n_chosen: int) -> bool:
+        return _rms(current.rss, self.n_train) < self.floor_factor * self.floor
+
+    def holdout(self, current: Any, name: str, f: Any) -> tuple[float, bool]:
+        hg = (1.0 - f.rss_test / current.rss_test
+              if self.n_test and current.rss_test > 0 else math.nan)
+        return hg, _rms(current.rss_test, self.n_test) > self.floor_factor * self.floor
+
+    def fit_candidates(self, current: Any, names: tuple[str, ...]) -> list[tuple[str, Any]]:
+        model = self.model
+        cands = model.candidates()
+        screened = []
+        for name in names:
+            grid = cands[name][0]
+            best = min(((model.rss(model.run(current.theta, current.effects + ((name, z),))), z)
+                        for z in grid), key=lambda x: x[0])
+            screened.append((best[0], name, best[1]))
+        screened.sort()
+        _say(self.progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
+                                                       for r, nm, _ in screened[:4]))
+        out = []
+        for rss_s, name, z in screened[:self.refine_top]:
+            _say(self.progress, f"fitting {name}")
+            eff = current.effects + ((name, z),)
+            # the nominal parameters may have bent to mimic the missing physics: start from the
+            # calibrated values when they do better with this candidate
+            theta = (self.nom0 if model.rss(model.run(self.nom0, eff)) < rss_s
+                     else current.theta)
+            f = model.fit(theta, eff)
+            if name == "dead_time":
+                f = _polish_delay(model, f)
+            out.append((name, f))
+        if not current.effects:
+            gains = sorted(((nm, 1.0 - f.rss / current.rss) for nm, f in out),
+                           key=lambda x: -x[1])
+            self.screened = gains + [(nm, 1.0 - r / current.rss)
+                                     for r, nm, _ in screened[self.refine_top:]]
+        return out
+
+
 def diagnose_dynamic(model: SimulatedModel, refine_top: int = 2, max_effects: int = 2,
                      floor_factor: float = 2.0, criterion: Criterion = DEFAULT,
                      progress: Callable[[str], None] | None = None) -> DynamicDiagnosis:
-    """Nominal fit, then forward selection of catalog effects under the shared rule."""
+    """Nominal fit, then forward selection of catalog effects by the engine."""
     data = model.data
     ym = data.y[data.keep]
     tr, te = data.split()
@@ -111,62 +181,19 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 2, max_effects: in
     _say(progress, f"physics step {model.dt_s * 1e3:.1f} ms: error {step_err:.2g} rad; floor "
                    f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples, "
                    f"{len(te)} held out)")
-    current = model.fit(nom0, ())
-    nominal = current
-    chosen: list[tuple[str, float, float]] = []
-    verdicts: list[Verdict] = []
-    rejected: list[tuple[str, str]] = []
-    ranking: list[tuple[str, float]] = []
-    while len(chosen) < max_effects:
-        if _rms(current.rss, len(tr)) < floor_factor * floor:
-            break  # what is left is noise and the physics step
-        have = tuple(e for e, _ in current.effects)
-        screened = []
-        for name, (grid, _) in model.candidates().items():
-            if name in have:
-                continue
-            best = min(((model.rss(model.run(current.theta, current.effects + ((name, z),))), z)
-                        for z in grid), key=lambda x: x[0])
-            screened.append((best[0], name, best[1]))
-        screened.sort()
-        _say(progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
-                                                  for r, nm, _ in screened[:4]))
-        fits = []
-        for rss_s, name, z in screened[:refine_top]:
-            _say(progress, f"fitting {name}")
-            eff = current.effects + ((name, z),)
-            # the nominal parameters may have bent to mimic the missing physics: start from the
-            # calibrated values when they do better with this candidate
-            theta = (nom0 if model.rss(model.run(nom0, eff)) < rss_s else current.theta)
-            f = model.fit(theta, eff)
-            if name == "dead_time":
-                f = _polish_delay(model, f)
-            fits.append((f.rss, name, f))
-        fits.sort(key=lambda x: x[0])
-        gains = [(nm, 1.0 - r / current.rss) for r, nm, _ in fits] + [
-            (nm, 1.0 - r / current.rss) for r, nm, _ in screened[refine_top:]]
-        if not chosen:
-            ranking = gains
-        informative = _rms(current.rss_test, len(te)) > floor_factor * floor
-        accepted = None
-        for rss, name, f in fits:
-            hg = (1.0 - f.rss_test / current.rss_test
-                  if len(te) and current.rss_test > 0 else math.nan)
-            v = judge(current.rss, rss, model.residual(f), 1, hg, informative,
-                      criterion=criterion)
-            if v.accepted:
-                accepted = (name, f, v)
-                break
-            rejected.append((name, v.why))
-        if accepted is None:
-            break
-        name, f, v = accepted
-        chosen.append((name, f.effects[-1][1], 1.0 - f.rss / current.rss))
-        verdicts.append(v)
-        current = f
-    warn = unexplained(_rms(current.rss, len(tr)), floor)
-    return DynamicDiagnosis(nominal, current, tuple(chosen), tuple(ranking), floor, ym,
-                            tuple(verdicts), tuple(rejected[:3]), warn)
+    nominal = model.fit(nom0, ())
+    path = SimPath(model, refine_top, floor_factor, progress, nom0, floor, len(tr), len(te))
+    sel = engine.forward(path, nominal, tuple(model.candidates()), max_effects,
+                         engine.Rule(criterion=criterion))
+    chosen = []
+    prev = nominal
+    for st in sel.steps:
+        chosen.append((st.name, st.fit.effects[-1][1], 1.0 - st.fit.rss / prev.rss))
+        prev = st.fit
+    warn = unexplained(_rms(sel.final.rss, len(tr)), floor)
+    return DynamicDiagnosis(nominal, sel.final, tuple(chosen), tuple(path.screened), floor, ym,
+                            tuple(st.verdict for st in sel.steps), sel.rejected[:3], warn,
+                            sel.ranking, sel.ambiguous)
 
 
 def print_progress(msg: str) -> None:
