@@ -81,7 +81,7 @@ class Pending:
     release_t_s: float
     order: int
     sent_t_s: float
-    payload: bytes
+    payload: bytes  # or, on the in-process bus, an immutable message object
     duplicate: bool
 
 
