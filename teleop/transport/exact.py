@@ -76,10 +76,18 @@ def _int(x: object) -> bool:
     return type(x) is int and 0 <= x <= SEQ_MAX
 
 
+_T_LO, _T_HI = TIME_RANGE_S
+_E_LO, _E_HI = ENERGY_RANGE_J
+
+
 def _header(h: object) -> bool:
-    return (type(h) is Header and type(h.version) is int and h.version == SCHEMA_VERSION
-            and _int(h.seq) and _f(h.t_s, TIME_RANGE_S)
-            and _f(h.energy_total_j, ENERGY_RANGE_J))
+    if type(h) is not Header:
+        return False
+    seq, t, e = h.seq, h.t_s, h.energy_total_j
+    return (type(h.version) is int and h.version == SCHEMA_VERSION
+            and type(seq) is int and 0 <= seq <= SEQ_MAX
+            and type(t) is float and _T_LO <= t <= _T_HI
+            and type(e) is float and _E_LO <= e <= _E_HI)
 
 
 def _model(v: object, stiffness: tuple[float, float]) -> bool:
