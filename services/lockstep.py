@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -221,6 +222,9 @@ _MASTER_COLS = ("t_s", "trigger_position_m", "trigger_velocity_m_s", "operator_f
                 "sent_j", "received_j", "dissipated_j", "delay_s", "dropped", "limit_count")
 
 
+_master_row = attrgetter(*_MASTER_COLS)
+
+
 class _Recorder:
     """Collects rows (one per master tick) of the latest sample of each service.
 
@@ -241,7 +245,7 @@ class _Recorder:
             c_fresh: bool, h_fresh: bool, audit: tuple[float, float, float, float]) -> None:
         i = self.n
         self.audit[i] = audit
-        self.m[i] = [getattr(m, k) for k in _MASTER_COLS]
+        self.m[i] = _master_row(m)
         if c is not None:
             if self._c_key is None or self._c_key[0] is not c or self._c_key[1] != c_fresh:
                 self._c_key, self._c_row = (c, c_fresh), np.array(

@@ -106,10 +106,19 @@ def _model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     if how == "max" and len(terms) == 3:  # the default, unrolled: same operations and order
         (k0, c0), (k1, c1), (k2, c2) = terms
         f = []
-        for j in range(n + 1):
+        for j in range(n + 1):  # max/min spelled as the comparisons they make (same bits)
             th = t0 + j * h
-            x = max(k0 * max(th - c0, 0.0), k1 * max(th - c1, 0.0), k2 * max(th - c2, 0.0))
-            f.append(min(max(x, 0.0), f_max))
+            d0, d1, d2 = th - c0, th - c1, th - c2
+            x = k0 * (0.0 if d0 < 0.0 else d0)  # max(d0, 0.0)
+            x1 = k1 * (0.0 if d1 < 0.0 else d1)
+            x2 = k2 * (0.0 if d2 < 0.0 else d2)
+            if x1 > x:  # max(x, x1, x2)
+                x = x1
+            if x2 > x:
+                x = x2
+            if x < 0.0:  # min(max(x, 0.0), f_max)
+                x = 0.0
+            f.append(f_max if f_max < x else x)
     else:
         f = [_force_of(terms, how, f_max, t0 + j * h) for j in range(n + 1)]
     return h * (sum(f) - 0.5 * (f[0] + f[-1])) / map_gain_rad_per_m(p)

@@ -36,7 +36,10 @@ def grip_to_setpoints(grip_position_m: float, p: ControlParams) -> Triple:
     s = grip_position_m / p.trigger_travel_m if math.isfinite(grip_position_m) else 0.0
     s = min(max(s, 0.0), 1.0) ** p.map_exponent
     closed = p.open_angle_rad + (p.closed_angle_rad - p.open_angle_rad) * s
-    return tuple(closed if p.finger_enable[i] else p.open_angle_rad  # type: ignore[return-value]
+    on = p.finger_enable
+    if on[0] and on[1] and on[2]:
+        return (closed, closed, closed)
+    return tuple(closed if on[i] else p.open_angle_rad  # type: ignore[return-value]
                  for i in range(3))
 
 
@@ -69,7 +72,9 @@ def deadband(pressure: float, band: float) -> float:
 
 def combine(per_finger: Triple, p: ControlParams) -> float:
     """The enabled fingers' values combined by ``force_combine`` (0 with none enabled)."""
-    vals = [v for v, on in zip(per_finger, p.finger_enable[:3], strict=True) if on]
+    on = p.finger_enable
+    vals = (list(per_finger) if on[0] and on[1] and on[2] and len(on) == 3
+            else [v for v, e in zip(per_finger, on[:3], strict=True) if e])
     if not vals:
         return 0.0
     if p.force_combine == "max":

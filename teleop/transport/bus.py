@@ -182,8 +182,9 @@ class Inbox:
         self.seq_rebases = 0  # sequence filter re-synchronised after a long outage
         self._seq_jumps: list[tuple[int, float]] = []  # consecutive seq_jump rejections (seq, t)
 
-    def arrive(self, payload: bytes, t_s: float) -> None:
-        """A message entered the link at ``t_s`` (its delay counts from there)."""
+    def arrive(self, payload: bytes | Message, t_s: float) -> None:
+        """A message entered the link at ``t_s`` (its delay counts from there): raw bytes, or
+        (in-process bus only) a message object the codec round-trips exactly."""
         self.state = delay_line_push(self.state, self.params, payload, t_s)
 
     def release(self, now_s: float) -> list[Received]:
@@ -212,10 +213,16 @@ class Inbox:
 
     def _deliver(self, due: list[Delivered]) -> list[Received]:
         out: list[Received] = []
+        exact = self.spec.msg_type
         for d in due:
-            msg = self._decoder.decode(d.payload, self.spec.msg_type)
-            if msg is None:
-                continue
+            p = d.payload
+            if type(p) is exact:  # an in-process message the codec round-trips exactly
+                msg = p
+                self._decoder.accept()
+            else:
+                msg = self._decoder.decode(p, exact)
+                if msg is None:
+                    continue
             seq = msg.header.seq
             if self._drop_stale and self._last_seq is not None:
                 if seq <= self._last_seq:

@@ -81,7 +81,7 @@ class Pending:
     release_t_s: float
     order: int
     sent_t_s: float
-    payload: bytes
+    payload: bytes  # or, on the in-process bus, an immutable message object
     duplicate: bool
 
 
@@ -156,6 +156,15 @@ def delay_line_push(state: DelayLineState, params: DelayParams, payload: bytes,
                     t_s: float) -> DelayLineState:
     """Send ``payload`` at ``t_s``: schedule its release (or lose it, or duplicate it)."""
     i = state.n_pushed
+    if (params.loss <= 0.0 and params.duplicate <= 0.0
+            and (params.jitter == "none" or params.jitter_s <= 0.0)):
+        return _push_plain(state, params, payload, t_s, i)
+    return _push_general(state, params, payload, t_s, i)
+
+
+def _push_general(state: DelayLineState, params: DelayParams, payload: bytes, t_s: float,
+                  i: int) -> DelayLineState:
+    """:func:`delay_line_push` with any impairment (loss, duplicates, jitter)."""
     lost, bad = _lost(state, params, i)
     if lost:
         return DelayLineState(state.pending, i + 1, state.n_lost + 1, state.n_duplicated,
@@ -182,6 +191,31 @@ def delay_line_push(state: DelayLineState, params: DelayParams, payload: bytes,
                           state.n_delivered, bad, last, state.delay_sum_s, state.delay_max_s)
 
 
+def _push_plain(state: DelayLineState, params: DelayParams, payload: bytes, t_s: float,
+                i: int) -> DelayLineState:
+    """:func:`delay_line_push` without loss, duplicates or jitter: the same operations on the
+    one copy (``min``/``max`` written as the comparisons they make), none of the draws."""
+    d = params.delay_s + 0.0  # _sample_delay with no jitter
+    if d > MAX_DELAY_S:
+        d = MAX_DELAY_S
+    release = t_s + d
+    last = state.last_release_t_s
+    if not params.reorder and last > release:
+        release = last
+    if release > last:
+        last = release
+    entry = Pending(release, 2 * i, t_s, payload, False)
+    pending = state.pending
+    if not pending or _key(pending[-1]) <= (release, 2 * i):  # the common case: in order
+        pending = (*pending, entry)
+    else:
+        ordered = list(pending)
+        bisect.insort(ordered, entry, key=_key)
+        pending = tuple(ordered)
+    return DelayLineState(pending, i + 1, state.n_lost, state.n_duplicated, state.n_delivered,
+                          state.bad, last, state.delay_sum_s, state.delay_max_s)
+
+
 def _release_t(e: Pending) -> float:
     return e.release_t_s
 
@@ -192,6 +226,26 @@ def delay_line_pop_due(state: DelayLineState,
     pending = state.pending
     if not pending or pending[0].release_t_s > t_s + TIME_EPS_S:
         return state, []
+    if len(pending) == 1 or pending[1].release_t_s > t_s + TIME_EPS_S:
+        return _pop_one(state, t_s)
+    return _pop_general(state, t_s)
+
+
+def _pop_one(state: DelayLineState, t_s: float) -> tuple[DelayLineState, list[Delivered]]:
+    """:func:`_pop_general` when only the first message is due, without its lists."""
+    e = state.pending[0]
+    d = t_s - e.sent_t_s
+    return DelayLineState(state.pending[1:], state.n_pushed, state.n_lost, state.n_duplicated,
+                          state.n_delivered + 1, state.bad, state.last_release_t_s,
+                          state.delay_sum_s + (0 + d),  # sum([d]) exactly
+                          max(state.delay_max_s, d)), [
+        Delivered(e.payload, e.sent_t_s, e.release_t_s, t_s, d, e.duplicate)]
+
+
+def _pop_general(state: DelayLineState,
+                 t_s: float) -> tuple[DelayLineState, list[Delivered]]:
+    """Release everything due at ``t_s`` (at least the first message is)."""
+    pending = state.pending
     n = bisect.bisect_right(pending, t_s + TIME_EPS_S, key=_release_t)
     out = [Delivered(e.payload, e.sent_t_s, e.release_t_s, t_s, t_s - e.sent_t_s, e.duplicate)
            for e in pending[:n]]

@@ -1,9 +1,14 @@
 """An in-process bus on a (usually virtual) clock: deterministic lockstep runs.
 
 All three services share one :class:`InProcessHub`; each gets a view with
-:meth:`InProcessHub.bus`.  ``publish`` encodes (so the codec is exercised exactly as over
-the network) and hands the bytes to the receiving view's delay line, stamped with the hub
-clock; ``receive`` releases what is due at the clock's current time.  With a
+:meth:`InProcessHub.bus`.  ``publish`` hands the message to the receiving view's delay line,
+stamped with the hub clock; ``receive`` releases what is due at the clock's current time.
+A message the codec round-trips exactly (:func:`~teleop.transport.exact.round_trips`: every
+field of the type and in the range decode gives back) travels as the immutable object
+itself, so the receiver gets what decoding its encoding would have given, without the
+msgpack round trip; anything else is encoded and decoded through the checked codec path as
+over the network (rejected with its reason), and so is every raw payload :meth:`inject`
+puts on a link.  With a
 :class:`~teleop.transport.clock.VirtualClock` the outcome depends only on the config seeds
 and the order of calls.
 
@@ -35,7 +40,8 @@ from teleop.transport.bus import (
     make_inboxes,
 )
 from teleop.transport.clock import Clock
-from teleop.transport.codec import encode
+from teleop.transport.codec import KINDS, encode
+from teleop.transport.exact import round_trips
 from teleop.transport.keys import check_role, check_session, signal_spec
 from teleop.transport.safe_decoder import SafeDecoder
 
@@ -105,7 +111,7 @@ class InProcessHub:
                 if inbox.spec.link == link:
                     inbox.params = link_params(self.links, inbox.signal)
 
-    def _deliver(self, signal: str, payload: bytes, t_s: float) -> None:
+    def _deliver(self, signal: str, payload: bytes | Message, t_s: float) -> None:
         spec = signal_spec(signal)
         if spec.link in self._cut:
             self.cut_dropped += 1
@@ -135,11 +141,13 @@ class InProcessBus:
         self._closed = False
 
     def publish(self, signal: str, msg: Message) -> None:
-        """Encode ``msg`` and put it on its link at the hub clock's time."""
+        """Put ``msg`` on its link at the hub clock's time: as the object when the codec
+        round-trips it exactly, else encoded (see the module docstring)."""
         check_publish(self.role, signal, msg)
         if self._closed:
             return
-        self._hub._deliver(signal, encode(msg), self._hub.clock.now_s())
+        self._hub._deliver(signal, msg if round_trips(msg) else encode(msg),
+                           self._hub.clock.now_s())
 
     def receive(self, signal: str) -> list[Received]:
         """Messages on ``signal`` due at the hub clock's time."""
@@ -165,8 +173,10 @@ class InProcessBus:
         return min(times) if times else None
 
     def inject(self, signal: str, payload: bytes) -> None:
-        """Put raw bytes on ``signal``'s link towards this view (tests: bad messages)."""
-        check_receive(self.role, self._inboxes, signal).arrive(payload, self._hub.clock.now_s())
+        """Put raw bytes on ``signal``'s link towards this view (tests: bad messages); they
+        go through the checked decoder (a message object is encoded first, never passed)."""
+        raw: object = encode(payload) if type(payload) in KINDS else payload
+        check_receive(self.role, self._inboxes, signal).arrive(raw, self._hub.clock.now_s())  # type: ignore[arg-type]
 
     def close(self) -> None:
         """Leave the hub (peers see this role as not alive)."""

@@ -57,6 +57,11 @@ class SafeDecoder:
         self._accepted += 1
         return msg
 
+    def accept(self) -> None:
+        """Count one message accepted without decoding: an in-process message the codec
+        round-trips exactly (:mod:`teleop.transport.exact`), so decoding would accept it."""
+        self._accepted += 1
+
     def reject(self, reason: str, detail: str = "") -> None:
         """Count (and rate-limited log) one rejection with tag ``reason``."""
         self._counts[reason] = self._counts.get(reason, 0) + 1

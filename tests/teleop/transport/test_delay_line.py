@@ -196,3 +196,29 @@ def test_pop_measures_achieved_delay_and_next_release() -> None:
     assert s3.n_delivered == 1 and s3.delay_max_s == pytest.approx(0.0503)
     assert next_release_s(s3) is None
     assert len(s.pending) == 1  # pure: the input state is untouched
+
+
+@settings(max_examples=60, deadline=None)
+@given(delay_s=st.sampled_from([0.0, 0.001, 0.05, 1.0, 75.0]), reorder=st.booleans(),
+       steps=st.lists(st.tuples(st.floats(-0.01, 0.05), st.booleans(), st.floats(0.0, 0.1)),
+                      min_size=1, max_size=60))
+def test_the_plain_fast_paths_equal_the_general_ones(delay_s: float, reorder: bool,
+                                                     steps: list[tuple[float, bool, float]]
+                                                     ) -> None:
+    """Without loss, duplicates and jitter, push and pop take fast paths: they must give the
+    general paths' states and messages to the bit (send times going back, delays over the
+    cap, FIFO and reordering links, pops of one and of many messages)."""
+    from teleop.transport import delay_line as dl
+
+    p = DelayParams(delay_s=delay_s, reorder=reorder)
+    fast = slow = DelayLineState()
+    t = 0.0
+    for i, (dt, pop, ahead) in enumerate(steps):
+        t = max(0.0, t + dt)
+        fast = delay_line_push(fast, p, bytes([i]), t)
+        slow = dl._push_general(slow, p, bytes([i]), t, slow.n_pushed)
+        assert fast == slow
+        if pop and slow.pending and slow.pending[0].release_t_s <= t + ahead + TIME_EPS_S:
+            fast, got_fast = delay_line_pop_due(fast, t + ahead)
+            slow, got_slow = dl._pop_general(slow, t + ahead)
+            assert (fast, got_fast) == (slow, got_slow)
