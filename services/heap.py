@@ -32,22 +32,48 @@ import math
 import os
 import time
 from collections.abc import Callable
+from typing import Any
 
 _MB = 1024.0 * 1024.0
 
 
-def _libc_trim() -> Callable[[int], int] | None:
-    """glibc's ``malloc_trim``, or None where the C library has none."""
+def _libc(symbol: str, *argtypes: Any) -> Any:
+    """The C library's ``symbol`` returning an int, or None where it has none (not glibc)."""
     name = ctypes.util.find_library("c")
     if name is None:
         return None
     try:
-        fn = ctypes.CDLL(name).malloc_trim
+        fn = getattr(ctypes.CDLL(name), symbol)
     except (OSError, AttributeError):
         return None
-    fn.argtypes = [ctypes.c_size_t]
+    fn.argtypes = list(argtypes)
     fn.restype = ctypes.c_int
     return fn
+
+
+def _libc_trim() -> Callable[[int], int] | None:
+    """glibc's ``malloc_trim``, or None where the C library has none."""
+    return _libc("malloc_trim", ctypes.c_size_t)
+
+
+M_ARENA_MAX = -8  # glibc's mallopt parameter number (malloc.h)
+
+
+def limit_arenas(n: int, mallopt: Callable[[int, int], int] | None = None) -> bool:
+    """Let glibc's malloc use at most ``n`` arenas in this process (0: leave its default, 8
+    per core); True if the limit was set.  Call it before the threads start: glibc fixes the
+    limit the first time a thread needs an arena of its own.  With one arena a backlog's
+    freed chunks are reused by the next backlog whichever thread takes it, instead of each
+    receive thread keeping a high-water mark of its own."""
+    if n <= 0:
+        return False
+    fn = mallopt if mallopt is not None else _libc_mallopt()
+    return fn is not None and fn(M_ARENA_MAX, n) == 1
+
+
+def _libc_mallopt() -> Callable[[int, int], int] | None:
+    """glibc's ``mallopt``, or None where the C library has none."""
+    return _libc("mallopt", ctypes.c_int, ctypes.c_int)
 
 
 def resident_mb() -> float:
