@@ -86,18 +86,29 @@ def resident_mb() -> float:
     return pages * os.sysconf("SC_PAGE_SIZE") / _MB
 
 
+#: after a trim the trimmer waits this long before it may trim again, whatever the resident
+#: size does: a trim whose pages are faulted straight back in cannot become a trim a second
+REARM_S = 30.0
+
+
 class HeapTrimmer:
     """Trims the heap when the resident size has grown ``threshold_mb`` since the last trim
-    (0: never).  ``trims`` counts the trims and ``longest_s`` is the slowest, for the
-    service's figures; ``trim`` and ``rss_mb`` are injectable (tests, other C libraries)."""
+    (0: never), at most once per :data:`REARM_S`.  ``trims`` counts the trims and
+    ``longest_s`` is the slowest, for the service's figures; ``trim``, ``rss_mb`` and
+    ``now_s`` are injectable (tests, other C libraries)."""
 
     def __init__(self, threshold_mb: float, trim: Callable[[int], int] | None = None,
-                 rss_mb: Callable[[], float] = resident_mb) -> None:
+                 rss_mb: Callable[[], float] = resident_mb,
+                 now_s: Callable[[], float] = time.monotonic, rearm_s: float = REARM_S
+                 ) -> None:
         if not threshold_mb >= 0.0:
             raise ValueError(f"heap trim threshold must be >= 0 MB, got {threshold_mb}")
         self.threshold_mb = threshold_mb
         self._trim = trim if trim is not None else _libc_trim()
         self._rss = rss_mb
+        self._now = now_s
+        self.rearm_s = rearm_s
+        self._last_trim_s = -math.inf
         self.trims = 0
         self.longest_s = 0.0
         self.base_mb = float("nan")  # resident size after the last trim (or the first poll)
@@ -116,6 +127,7 @@ class HeapTrimmer:
         self.longest_s = max(self.longest_s, time.perf_counter() - t0)
         self.trims += 1
         self.base_mb = self._rss()
+        self._last_trim_s = self._now()
 
     def poll(self) -> bool:
         """Trim if the resident size grew by the threshold since the base; True if it did."""
@@ -128,6 +140,8 @@ class HeapTrimmer:
             self.base_mb = rss
             return False
         if rss - self.base_mb < self.threshold_mb:
+            return False
+        if self._now() - self._last_trim_s < self.rearm_s:  # not re-armed yet
             return False
         self.trim_now()
         return True
