@@ -12,14 +12,18 @@ reads the resident size (``/proc/self/statm``, ~10 us) and trims only when it ha
 periodically.  The loop's own thread trims: a trim on a background thread of normal priority
 holds the arenas' locks while the real-time loop can preempt it.
 
-**Off by default** (``session.heap_trim_mb = 0``).  It does what it is for (30-minute soak,
-docs/soak-heap-trim.json: RSS growth at most 6.2 %, against 23 % without), but in every paired
-soak the master's 1 kHz loop had more late ticks with it: 166 against 41 stalls over 20 ms in
-6 minutes with a fault every 20 s, 124 against 30 in 4 minutes with one every 10 s, and the
-30-minute run's master p99 lateness was 18-19 ms in each 5-minute window after its own
-SIGSTOP.  The mechanism is not pinned down (a trim takes every arena's lock, and a zenoh thread
-holding one cannot run while both cores spin real-time loops); a late haptic tick costs more
-than 13 MB kept.
+**On by default** (``session.heap_trim_mb = 4``, at most one trim per :data:`REARM_S`).
+It was off for a while because the soaks' master loop had more late ticks with it; paired
+4-minute soaks (``teleop faults --soak 4 --fault-every 10``, trimmer on / off, load average
+8-11) did not confirm that: the master trimmed 0 times in both runs with the trimmer, and
+its late ticks (> 5 ms) were 3,883 / 4,649 and 13,588 / 14,391.  The master's late ticks
+come with or without the trimmer (docs/faults.md).  A controller stalled for 3 s peaked at
+66 MB in all runs and was back at 54-55 MB a second after the stall with the trimmer, at
+66-68 MB to its end without.
+
+Limiting the arenas instead (:func:`limit_arenas`, ``session.malloc_arenas = 1``) makes
+successive backlogs reuse one arena (tests/services/test_heap_arenas.py) but does not return
+the first one: the stalled controller of a soak with it kept 65 MB.
 
 Only glibc has ``malloc_trim``; elsewhere the trimmer does nothing (:attr:`available`).
 """

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from services.heap import REARM_S, HeapTrimmer
+from teleop.config.session import SessionConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -21,6 +22,7 @@ CHILD = """
 import sys, threading
 sys.path.insert(0, sys.argv[2])
 from services.heap import REARM_S, HeapTrimmer
+from teleop.config.session import SessionConfig
 def rss_mb():
     for line in open("/proc/self/status"):
         if line.startswith("VmRSS"):
@@ -54,7 +56,8 @@ needs_glibc = pytest.mark.skipif(not HeapTrimmer(1.0).available,
 
 @needs_glibc
 def test_the_trimmer_returns_a_fragmented_backlog_to_the_os_once() -> None:
-    before, after, trims = _run(4.0)
+    # the services' default threshold: what every service runs with
+    before, after, trims = _run(SessionConfig().heap_trim_mb)
     assert before > 50.0, f"the backlog did not build up ({before:.1f} MB)"
     assert trims == 1  # the jump is trimmed once; the next polls find nothing grown
     assert before - after > 30.0, f"RSS {before:.1f} -> {after:.1f} MB"
