@@ -19,6 +19,7 @@ import json
 import math
 import socket
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from teleop.config import load_config
@@ -35,14 +36,15 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def bench_loop(duration_s: float = 5.0) -> dict[str, float]:
-    """Run the three services for ``duration_s`` and return their loop figures."""
+def bench_loop(duration_s: float = 5.0, sets: Sequence[str] = ()) -> dict[str, float]:
+    """Run the three services for ``duration_s`` (config ``sets``, ``KEY=VALUE``, on top of
+    the defaults) and return their loop figures."""
     import contextlib
     import io
 
     from services.launcher import Launcher
 
-    overrides = [f"zenoh.endpoint=tcp/127.0.0.1:{free_port()}",
+    overrides = [*sets, f"zenoh.endpoint=tcp/127.0.0.1:{free_port()}",
                  f"session.name=bench{free_port()}"]
     cfg = load_config(None, overrides)
     with tempfile.TemporaryDirectory(prefix="teleop-bench-") as tmp:

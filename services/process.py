@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from services.heap import HeapTrimmer
+from services.heap import HeapTrimmer, limit_arenas
 from services.runtime import LoopStats, RateLoop, try_realtime_priority
 from services.samples import status_line
 from services.telemetry import Telemetry
@@ -172,6 +172,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
     from teleop.transport.zenoh_bus import ZenohBus
 
     role = opts.role
+    limit_arenas(cfg.session.malloc_arenas)  # before the bus's threads exist
     clock = MonotonicClock()
     rate = {"master": cfg.master.rate_hz, "controller": cfg.controller.rate_hz,
             "hand": cfg.hand.state_rate_hz}[role]
@@ -240,6 +241,8 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
                 smp = last[0]
                 extra = ({"trigger_m": smp.trigger_position_m} if role == "master" else
                          {"contacts": float(sum(smp.contacts))} if is_hand else {})
+                extra["heap_trims"] = float(trimmer.trims)
+                extra["heap_trim_max_ms"] = trimmer.longest_s * 1e3
                 soak.status(t_s, smp.watchdog, bus.stats().rejects.rejected,
                             led.initial_j if led is not None else 0.0,
                             audit_source() if audit_source is not None else None, **extra)

@@ -38,6 +38,14 @@ def _logs(work: Path, suffix: str) -> dict[str, list[Path]]:
     return out
 
 
+def _trims(work: Path, role: str, pid: int) -> dict[str, float]:
+    """A process's heap trims and its slowest trim in ms, from its last status line."""
+    path = work / f"{role}-{pid}.jsonl"
+    last = read_status(path)[-1:] if path.exists() else []
+    return {"heap_trims": last[0].get("heap_trims", 0.0) if last else 0.0,
+            "heap_trim_max_ms": last[0].get("heap_trim_max_ms", 0.0) if last else 0.0}
+
+
 def _first_t(p: Path) -> float:
     status = p.with_suffix(".jsonl")
     if status.exists():
@@ -79,7 +87,8 @@ def summarise(run: Any, cfg: TeleopConfig, codes: dict[str, int], tracebacks: li
     warmup = min(120.0, 0.25 * run.duration_s)
     floods = [(f.start_s - 1.0, f.end_s + 10.0) for f in run.faults
               if f.kind == "malformed_flood"]
-    procs = growth(run.samples, warmup, floods)
+    procs = [p | _trims(run.work, p["role"], p["pid"])
+             for p in growth(run.samples, warmup, floods)]
     judged = [p for p in procs if p["rss_growth_pct"] is not None]
     worst = max((p["rss_growth_pct"] for p in judged), default=None)
     worst_thr = max((p["threads_growth_pct"] for p in judged), default=None)
@@ -192,7 +201,8 @@ def soak_table(doc: dict[str, Any]) -> str:
                      f"{p['rss_last_mb']:.0f} MB ({_fmt(p['rss_growth_pct'], ' %')}; "
                      f"{_fmt(p['rss_growth_outside_pct'], ' %')} outside floods)  threads "
                      f"{p['threads_min']}-{p['threads_max']} "
-                     f"({_fmt(p['threads_growth_pct'], ' %')})")
+                     f"({_fmt(p['threads_growth_pct'], ' %')})  heap trims "
+                     f"{p.get('heap_trims', 0.0):.0f}")
     lines.append("faults:")
     for f in doc["faults"]:
         extra = (f", {f['rejected']}/{f['injected']} rejected"

@@ -13,9 +13,13 @@ class SessionConfig:
 
     name: str = param("default", "session name: zenoh keys are teleop/<name>/<role>/<signal>")
     seed: int = param(0, "master seed for everything random in a run", lo=0)
+    malloc_arenas: int = param(
+        0, "glibc malloc arenas a service may use (mallopt M_ARENA_MAX, set before its threads "
+        "start); 0 = glibc's default (8 per core), where each zenoh receive thread that takes "
+        "a stall's backlog keeps its own high-water mark (1 does not give the first backlog "
+        "back: heap_trim_mb does)", lo=0, hi=64)
     heap_trim_mb: float = param(
-        0.0, "a service whose resident memory grew this much since its last trim returns its "
+        4.0, "a service whose resident memory grew this much since its last trim returns its "
         "freed heap to the operating system (glibc malloc_trim, in the loop's once-a-second "
-        "slot; after a stall the backlog's high-water mark is otherwise kept for the "
-        "process's life); 0 = never, the default: with 4 MB the soaks' master loop had 4x "
-        "the late ticks (docs/faults.md)", unit="MB", lo=0.0, hi=100000.0)
+        "slot, at most once per 30 s; after a stall the backlog's high-water mark is "
+        "otherwise kept for the process's life); 0 = never", unit="MB", lo=0.0, hi=100000.0)

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from services.heap import HeapTrimmer
+from services.heap import REARM_S, HeapTrimmer
+from teleop.config.session import SessionConfig
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -20,7 +21,8 @@ ROOT = Path(__file__).resolve().parents[2]
 CHILD = """
 import sys, threading
 sys.path.insert(0, sys.argv[2])
-from services.heap import HeapTrimmer
+from services.heap import REARM_S, HeapTrimmer
+from teleop.config.session import SessionConfig
 def rss_mb():
     for line in open("/proc/self/status"):
         if line.startswith("VmRSS"):
@@ -54,7 +56,8 @@ needs_glibc = pytest.mark.skipif(not HeapTrimmer(1.0).available,
 
 @needs_glibc
 def test_the_trimmer_returns_a_fragmented_backlog_to_the_os_once() -> None:
-    before, after, trims = _run(4.0)
+    # the services' default threshold: what every service runs with
+    before, after, trims = _run(SessionConfig().heap_trim_mb)
     assert before > 50.0, f"the backlog did not build up ({before:.1f} MB)"
     assert trims == 1  # the jump is trimmed once; the next polls find nothing grown
     assert before - after > 30.0, f"RSS {before:.1f} -> {after:.1f} MB"
@@ -67,20 +70,44 @@ def test_mutant_without_trimming_the_backlog_stays() -> None:
     assert after > before - 5.0, f"RSS {before:.1f} -> {after:.1f} MB without trimming"
 
 
-def _fake(rss: list[float]) -> tuple[HeapTrimmer, list[int]]:
+def _fake(rss: list[float], clock: list[float] | None = None, rearm_s: float = REARM_S
+          ) -> tuple[HeapTrimmer, list[int]]:
     calls: list[int] = []
+    now = clock if clock is not None else [0.0]
 
     def trim(pad: int) -> int:
         calls.append(pad)
         rss[0] -= 5.0  # a trim gives 5 MB back
         return 1
 
-    return HeapTrimmer(4.0, trim=trim, rss_mb=lambda: rss[0]), calls
+    return HeapTrimmer(4.0, trim=trim, rss_mb=lambda: rss[0], now_s=lambda: now[0],
+                       rearm_s=rearm_s), calls
+
+
+def _regrowing(rearm_s: float) -> int:
+    """Trims in 60 one-second polls when every trim's pages are faulted straight back in
+    (RSS back to 60 MB at once): the trigger would fire at every poll."""
+    rss, clock = [50.0], [0.0]
+    trimmer, calls = _fake(rss, clock, rearm_s)
+    trimmer.poll()
+    for _ in range(60):
+        clock[0] += 1.0
+        rss[0] = 60.0
+        trimmer.poll()
+    return len(calls)
+
+
+def test_a_trim_whose_memory_comes_straight_back_waits_to_be_rearmed() -> None:
+    assert _regrowing(REARM_S) == 2  # at 1 s and at 31 s (60 s of polls)
+
+
+def test_mutant_without_rearm_delay_trims_every_second() -> None:
+    assert _regrowing(0.0) == 60
 
 
 def test_a_trim_only_after_the_resident_size_jumped_by_the_threshold() -> None:
-    rss = [50.0]
-    trimmer, calls = _fake(rss)
+    rss, clock = [50.0], [0.0]
+    trimmer, calls = _fake(rss, clock)
     assert not trimmer.poll()  # the first poll sets the base
     rss[0] = 53.9
     assert not trimmer.poll() and calls == []
@@ -91,6 +118,8 @@ def test_a_trim_only_after_the_resident_size_jumped_by_the_threshold() -> None:
     rss[0] = 45.0
     assert not trimmer.poll() and trimmer.base_mb == 45.0  # memory went down: a lower base
     rss[0] = 49.5
+    assert not trimmer.poll()  # grown enough, but within REARM_S of the last trim
+    clock[0] += REARM_S
     assert trimmer.poll() and trimmer.trims == 2
 
 

@@ -79,3 +79,18 @@ def test_each_failure_fails_the_verdict(run: SoakRun, tmp_path: Path) -> None:
     doc = _doc(stuck)  # the hand's watchdog never clears after the cut
     assert doc["faults"][0]["recovery_s"] is None and doc["faults_unrecovered"] == 1
     assert not doc["ok"] and "1 unrecovered" in doc["verdict"]
+
+
+def test_each_process_reports_its_heap_trims_from_its_own_status_lines(tmp_path: Path) -> None:
+    for pid, role in enumerate(("master", "controller", "hand")):
+        _write(tmp_path, role, pid + 1)
+    log = SoakLog(tmp_path, "controller", 7, epoch_s=100.0, rate_hz=10.0)  # a restarted one
+    for k, trims in enumerate((0.0, 1.0, 1.0, 2.0)):
+        log.status(100.0 + k / 10.0, 0.0, 0, 1.0, None, heap_trims=trims, heap_trim_max_ms=1.5)
+    log.close()
+    r = SoakRun(tmp_path, epoch=100.0, start_s=0.0, duration_s=30.0)
+    r.samples = [(float(t), role, pid, 50.0, 10) for t in range(0, 30, 5)
+                 for role, pid in (("master", 1), ("controller", 7))]
+    procs = {p["pid"]: p for p in _doc(r)["processes"]}
+    assert procs[7]["heap_trims"] == 2.0 and procs[7]["heap_trim_max_ms"] == 1.5
+    assert procs[1]["heap_trims"] == 0.0  # the master's lines carry none
