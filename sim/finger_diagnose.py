@@ -124,7 +124,10 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
     doc: dict[str, object] = {
         "model": "finger", "analysis": "output-error",
         "selection": "penalised likelihood (effective sample size) + held-out gain",
-        "effects": [{"name": n, "params": {n: v}, "rss_reduction": g, "score": vd.score,
+        # "delta_bic": the shared rule's score, under the key every diagnose JSON uses
+        # (DESIGN.md's contract; the axis path writes the same number as "delta_bic")
+        "effects": [{"name": n, "params": {n: v}, "delta_bic": vd.score, "score": vd.score,
+                     "rss_reduction": g,
                      "holdout_gain": vd.holdout_gain, "explanation": explanation(n, v)}
                     for (n, v, g), vd in zip(d.chosen, d.verdicts, strict=True)],
         "windows": [],
@@ -133,8 +136,9 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
                 "after": {"nrmse": after,
                           "params": {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)),
                                      **dict(d.final.effects)}}},
-        "ranking": [{"name": n, "rss_reduction": g, **({"score": scores[n]} if n in scores
-                                                        else {})} for n, g in d.ranking],
+        "ranking": [{"name": n, "rss_reduction": g,
+                     **({"delta_bic": scores[n], "score": scores[n]} if n in scores else {})}
+                    for n, g in d.ranking],
         "unexplained": d.warning, "note": data.note or None, "ambiguous": list(d.ambiguous)}
     return lines, doc
 

@@ -61,4 +61,7 @@ def test_dynamic_force_step_on_the_command_line_finds_the_concealed_backlash(tmp
     doc = json.loads(out.read_text())
     assert doc["effects"][0]["name"] == "backlash"
     assert abs(doc["effects"][0]["params"]["backlash"] - 0.03) < 0.005
+    # the JSON contract every diagnose path keeps (DESIGN.md): name, params, delta_bic
+    assert set(doc["effects"][0]) >= {"name", "params", "delta_bic"}
+    assert doc["effects"][0]["delta_bic"] > 0
     assert doc["fit"]["after"]["nrmse"] < 0.1 * doc["fit"]["before"]["nrmse"]

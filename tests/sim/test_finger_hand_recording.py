@@ -35,6 +35,7 @@ def test_a_command_delay_in_the_hand_is_found_from_the_recorded_set_points(tmp_p
     assert doc["effects"], doc
     first = doc["effects"][0]
     assert first["name"] == "dead_time"
+    assert set(first) >= {"name", "params", "delta_bic"} and first["delta_bic"] > 0
     assert abs(first["params"]["dead_time"] - 0.06) <= 0.01
     assert doc["fit"]["after"]["nrmse"] < 0.3 * doc["fit"]["before"]["nrmse"]
 
