@@ -130,8 +130,12 @@ def _lost(state: DelayLineState, p: DelayParams, i: int) -> tuple[bool, bool | N
     return bad, bad
 
 
+def _no_jitter(p: DelayParams) -> bool:
+    return p.jitter == "none" or p.jitter_s <= 0.0
+
+
 def _jitter(p: DelayParams, i: int, draw: int) -> float:
-    if p.jitter == "none" or p.jitter_s <= 0.0:
+    if _no_jitter(p):
         return 0.0
     u = _uniform(p.stream, i, draw)
     if p.jitter == "uniform":
@@ -152,12 +156,20 @@ def _key(e: Pending) -> tuple[float, int]:
     return (e.release_t_s, e.order)
 
 
+def _insert(pending: tuple[Pending, ...], entry: Pending) -> tuple[Pending, ...]:
+    """``pending`` with ``entry`` in release order (appended in the common in-order case)."""
+    if not pending or _key(pending[-1]) <= _key(entry):
+        return (*pending, entry)
+    ordered = list(pending)
+    bisect.insort(ordered, entry, key=_key)
+    return tuple(ordered)
+
+
 def delay_line_push(state: DelayLineState, params: DelayParams, payload: bytes,
                     t_s: float) -> DelayLineState:
     """Send ``payload`` at ``t_s``: schedule its release (or lose it, or duplicate it)."""
     i = state.n_pushed
-    if (params.loss <= 0.0 and params.duplicate <= 0.0
-            and (params.jitter == "none" or params.jitter_s <= 0.0)):
+    if params.loss <= 0.0 and params.duplicate <= 0.0 and _no_jitter(params):
         return _push_plain(state, params, payload, t_s, i)
     return _push_general(state, params, payload, t_s, i)
 
@@ -180,13 +192,7 @@ def _push_general(state: DelayLineState, params: DelayParams, payload: bytes, t_
         if not params.reorder:
             release = max(release, last)
         last = max(last, release)
-        entry = Pending(release, 2 * i + k, t_s, payload, dup)
-        if not pending or _key(pending[-1]) <= _key(entry):  # the common case: in order
-            pending = (*pending, entry)
-        else:
-            ordered = list(pending)
-            bisect.insort(ordered, entry, key=_key)
-            pending = tuple(ordered)
+        pending = _insert(pending, Pending(release, 2 * i + k, t_s, payload, dup))
     return DelayLineState(pending, i + 1, state.n_lost, state.n_duplicated + len(copies) - 1,
                           state.n_delivered, bad, last, state.delay_sum_s, state.delay_max_s)
 
@@ -204,14 +210,7 @@ def _push_plain(state: DelayLineState, params: DelayParams, payload: bytes, t_s:
         release = last
     if release > last:
         last = release
-    entry = Pending(release, 2 * i, t_s, payload, False)
-    pending = state.pending
-    if not pending or _key(pending[-1]) <= (release, 2 * i):  # the common case: in order
-        pending = (*pending, entry)
-    else:
-        ordered = list(pending)
-        bisect.insort(ordered, entry, key=_key)
-        pending = tuple(ordered)
+    pending = _insert(state.pending, Pending(release, 2 * i, t_s, payload, False))
     return DelayLineState(pending, i + 1, state.n_lost, state.n_duplicated, state.n_delivered,
                           state.bad, last, state.delay_sum_s, state.delay_max_s)
 
