@@ -93,6 +93,7 @@ class HandService:
         self.limit_count = 0
         self._was_limited = False
         self._model_fallbacks = 0
+        self._yielding = 0
         self.wd_params = hand_command_watchdog(cfg, watchdogs)
         self.wd = WatchdogState()
         self.events: list[str] = []
@@ -213,6 +214,11 @@ class HandService:
             self.events.append("contact model: estimate diverged, dropped (the operator feels "
                                "the measured force until a new fit)")
         self._model_fallbacks = out.model_fallbacks
+        if out.yielding > self._yielding:
+            self.events.append(f"yielding contact: {out.yielding} finger(s) crushing or "
+                               "sliding; tactile force not trusted there, further advance "
+                               "charged at the servo's torque")
+        self._yielding = out.yielding
         if out.limited:
             if not self._was_limited:
                 self.events.append("passivity layer limiting the set-points")
@@ -237,7 +243,7 @@ class HandService:
             dropped=float(self.dropped), watchdog=float(self.wd.tripped),
             model_fallbacks=float(out.model_fallbacks),
             servo_fault_trips=float(reading.servo_fault_trips),
-            servo_safe=float(reading.servo_safe))
+            servo_safe=float(reading.servo_safe), yielding=float(out.yielding))
 
     def close(self) -> None:
         """Go safe and release the hand."""

@@ -95,6 +95,7 @@ class HandSample:
     model_fallbacks: float = 0.0  # contact estimates dropped as diverged so far
     servo_fault_trips: float = 0.0  # servo error bits sent the hand safe this often so far
     servo_safe: float = 0.0  # 1 while held safe because of servo error bits
+    yielding: float = 0.0  # fingers whose contact yields (tactile force not trusted there)
 
 
 Sample = MasterSample | ControllerSample | HandSample

@@ -113,6 +113,14 @@ class TactileConfig:
                                 "net work on the object is charged x m while the object has "
                                 "received more than it gave back, / m otherwise",
                                 lo=1.0, hi=100.0)
+    yield_window_m: float = param(0.001, "yielding-contact guard: pad advance over which the "
+                                  "force's rise is measured (a chord of force against advance)",
+                                  unit="m", lo=1e-5, hi=0.05)
+    yield_stiffness_ratio: float = param(0.2, "yielding-contact guard: a chord less stiff than "
+                                         "this fraction of the contact's stiffest flags the "
+                                         "finger as yielding; its further advance is then "
+                                         "charged at the servo's torque (0: guard off)",
+                                         lo=0.0, hi=1.0)
 
 
 @dataclass(frozen=True, slots=True)

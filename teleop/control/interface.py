@@ -168,6 +168,7 @@ class HandOutput:
     # fingers hold back (servo potential + tendon stretch at the set-point, the reservation)
     contact_model: tuple[float, ...] = NO_MODEL  # HandState.contact_model to send
     model_fallbacks: int = 0  # contact estimates dropped as diverged so far (all fingers)
+    yielding: int = 0  # fingers whose contact yields (charged at the servo's torque)
 
 
 @dataclass(frozen=True, slots=True)

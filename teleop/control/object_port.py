@@ -61,6 +61,8 @@ class TactileModel:
     distal_pad_m: tuple[float, float] = (0.0, 0.045)
     noise_floor: float = 6.0
     force_margin: float = 1.15
+    yield_window_m: float = 0.001
+    yield_stiffness_ratio: float = 0.2
 
 
 @dataclass(frozen=True, slots=True)
@@ -199,17 +201,25 @@ def margin_net_j(model: TactileModel, charged_j: float) -> float:
     return charged_j / m if charged_j >= 0.0 else charged_j * m
 
 
+def track_fingers(model: TactileModel, prev: tuple[PadTrack, ...] | None,
+                  fingers: tuple[FingerState, ...]
+                  ) -> tuple[tuple[PadTrack, ...], tuple[tuple[float, float], ...]]:
+    """All fingers: ``(tracks, ((into J, back J) per finger))`` (both 0 at the first
+    sample)."""
+    if prev is None or len(prev) != len(fingers):
+        return tuple(track_start(f) for f in fingers), tuple((0.0, 0.0) for _ in fingers)
+    tracks = []
+    works = []
+    for t0, f in zip(prev, fingers, strict=True):
+        t1, o, i = track_finger(model, t0, f)
+        tracks.append(t1)
+        works.append((o, i))
+    return tuple(tracks), tuple(works)
+
+
 def track_hand(model: TactileModel, prev: tuple[PadTrack, ...] | None,
                fingers: tuple[FingerState, ...]
                ) -> tuple[tuple[PadTrack, ...], float, float]:
     """All fingers: ``(tracks, into J, back J)``."""
-    if prev is None or len(prev) != len(fingers):
-        return tuple(track_start(f) for f in fingers), 0.0, 0.0
-    out_j = in_j = 0.0
-    tracks = []
-    for t0, f in zip(prev, fingers, strict=True):
-        t1, o, i = track_finger(model, t0, f)
-        tracks.append(t1)
-        out_j += o
-        in_j += i
-    return tuple(tracks), out_j, in_j
+    tracks, works = track_fingers(model, prev, fingers)
+    return tracks, sum(o for o, _ in works), sum(i for _, i in works)

@@ -42,7 +42,7 @@ from teleop.control.model_render import (
     model_force_n,
     step_render,
 )
-from teleop.control.object_port import PadTrack, margin_charge_j, margin_net_j, track_hand
+from teleop.control.object_port import PadTrack, margin_charge_j, margin_net_j, track_fingers
 from teleop.control.passivity_layer import (
     dissipation_lower_bound_j,
     hand_reservation_j,
@@ -58,6 +58,13 @@ from teleop.control.transparency_layer import (
     grip_to_setpoints,
     max_pressures,
     transparency_force,
+)
+from teleop.control.yield_guard import (
+    NO_CONTACT,
+    YieldTrack,
+    pad_advance_m,
+    step_yield,
+    yield_charge_j,
 )
 from teleop.messages import (
     NO_MODEL,
@@ -284,6 +291,7 @@ class HandPortState:
     object_net_j: float = 0.0  # estimated net work on the object so far (before the margin)
     held_j: float = 0.0  # what the fingers could push into the object after the last sample
     models: tuple[FingerModel, ...] | None = None  # contact model per finger (rendering on)
+    yields: tuple[YieldTrack, ...] = (NO_CONTACT, NO_CONTACT, NO_CONTACT)  # yield guard
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -356,6 +364,22 @@ def hand_hold_j(p: ControlParams) -> float:
     return n * reservation_j(tmax / k, k, tmax, p.tendon_stiffness_nm_per_rad)
 
 
+def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...],
+                  x: Triple) -> tuple[YieldTrack, ...]:
+    """The yielding-contact guard's step for the three fingers: each one's total pad force
+    and the pads' force-weighted advance driven by the proximal joint over the sample."""
+    before = s.pads or pads
+    t = p.tactile
+    out = []
+    for g, a, b, x_i in zip(s.yields, before, pads, x, strict=False):
+        adv = pad_advance_m((b.prox_force_n, b.dist_force_n), (b.prox_x_m, b.dist_x_m),
+                            b.proximal_rad - a.proximal_rad, b.distal_rad,
+                            t.proximal_length_m)
+        out.append(step_yield(g, b.prox_force_n + b.dist_force_n, adv, x_i,
+                              t.yield_window_m, t.yield_stiffness_ratio))
+    return tuple(out)
+
+
 def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
                      command: HandCommand | None,
                      dt_s: float) -> tuple[HandPortState, HandOutput]:
@@ -366,17 +390,25 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     led = s.ledger
     x = measure_hand(s, fingers)
     y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
-    pads, into_j, back_j = track_hand(p.tactile, s.pads, fingers[:3])
-    net = s.object_net_j + into_j - back_j
+    pads, works = track_fingers(p.tactile, s.pads, fingers[:3])
+    yields = guard_fingers(p, s, pads, x)
+    trusted = [w for w, g in zip(works, yields, strict=False) if not g.yielding]
+    net = s.object_net_j + sum(o for o, _ in trusted) - sum(i for _, i in trusted)
     paid = margin_charge_j(p.tactile, s.object_net_j)
     charge = margin_charge_j(p.tactile, net) - paid
+    # a yielding finger's cells are not trusted: its inward motion is charged at the servo's
+    # torque (teleop.control.yield_guard)
+    crush = (yield_charge_j(x, s.x_prev, tuple(g.yielding for g in yields),
+                            p.servo_torque_max_nm) if s.x_prev is not None else 0.0)
     # one sample cannot deliver more than the fingers held at its start (servo potential,
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that
     cap = s.held_j + p.finger_kinetic_j * len(fingers[:3])
-    if charge > cap:
-        charge = cap
-        net = margin_net_j(p.tactile, paid + cap)
+    crush = min(crush, cap)
+    if charge > cap - crush:
+        charge = cap - crush
+        net = margin_net_j(p.tactile, paid + charge)
+    charge += crush
     out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)
@@ -393,9 +425,10 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
                        dissipated_j=led.dissipated_j + diss)
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
-                     setpoint_desired_rad=want, limited=limited, spring_energy_j=held)
+                     setpoint_desired_rad=want, limited=limited, spring_energy_j=held,
+                     yielding=sum(1 for g in yields if g.yielding))
     return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx, pads=pads,
-                         object_net_j=net, held_j=held, models=s.models), out
+                         object_net_j=net, held_j=held, models=s.models, yields=yields), out
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],

@@ -117,6 +117,7 @@ class Trace:
     ledgers: list[tuple[EnergyLedger, EnergyLedger, EnergyLedger]] = field(default_factory=list)
     limited_master: int = 0
     limited_hand: int = 0
+    yielding_hand: int = 0  # most fingers the hand side flagged as yielding at once
 
     @property
     def master_net_out_j(self) -> list[float]:
@@ -328,6 +329,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         tr.ledgers.append((m_out.ledger, c_out.ledger, hand_out.ledger))  # type: ignore[union-attr]
         tr.limited_master += int(m_out.limited)
         tr.limited_hand += int(hand_out.limited)  # type: ignore[union-attr]
+        tr.yielding_hand = max(tr.yielding_hand, getattr(hand_out, "yielding", 0))
     return tr
 
 

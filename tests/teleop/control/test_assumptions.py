@@ -9,9 +9,12 @@ for a bound) or a fixed wall, with the assumption broken in the harness's *physi
 judges the loop by the harness's own energy audit.
 
 Outcome, measured: breaking the servo and sample-rate assumptions leaves the loop passive
-(the tank pays for the work measured at the object, not for what the servo model predicts);
-a tactile sensor that reads low beyond the margin breaks the bound on the yielding object.
-That one is load-bearing and has no run-time alarm yet (issue 13's notes).
+(the tank pays for the work measured at the object, not for what the servo model predicts).
+A tactile sensor that reads low beyond the margin used to break the bound on the yielding
+object; the yielding-contact guard (:mod:`teleop.control.yield_guard`) now sees the yield in
+the shape of force against advance (independent of the gain), raises the hand's ``yielding``
+alarm and charges that finger's advance at the servo's torque: passive again.  With the guard
+off (``yield_stiffness_ratio = 0``) or its charge dropped the bound breaks, as before.
 """
 
 from __future__ import annotations
@@ -58,11 +61,45 @@ def test_a_sensor_within_its_margin_keeps_the_bound() -> None:
     assert audit(replace(PUSH, sensor_gain_factor=1.0 / P.tactile.force_margin)) == ""
 
 
+GUARD_OFF = replace(P, tactile=replace(P.tactile, yield_stiffness_ratio=0.0))
+
+
 @pytest.mark.parametrize("gain", [0.5, 1.0 / 3.0])
-def test_a_sensor_reading_low_beyond_the_margin_breaks_the_bound(gain: float) -> None:
-    """The load-bearing assumption: the audit shows energy generated on the yielding object
-    (the tank pays for a fraction of the work the fingers really do)."""
-    assert audit(replace(PUSH, sensor_gain_factor=gain)) != ""
+def test_a_sensor_reading_low_on_a_yielding_object_raises_the_alarm_and_stays_passive(
+        gain: float) -> None:
+    """The load-bearing assumption broken: the guard flags every finger as yielding and the
+    audit holds."""
+    r = run_loop(SUITE, P, replace(PUSH, sensor_gain_factor=gain))
+    assert r.yielding_hand == 3
+    assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
+
+
+@pytest.mark.parametrize("gain", [0.5, 1.0 / 3.0])
+def test_without_the_guard_a_sensor_reading_low_breaks_the_bound(gain: float) -> None:
+    """The mutant kept as a test: the guard off, the audit shows energy generated on the
+    yielding object (the tank pays for a fraction of the work the fingers really do)."""
+    r = run_loop(SUITE, GUARD_OFF, replace(PUSH, sensor_gain_factor=gain))
+    assert r.yielding_hand == 0
+    assert audit_failure(r, initial_tank_j(SUITE, GUARD_OFF)) != ""
+
+
+def test_the_guard_without_its_charge_breaks_the_bound(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Flagging alone is not enough: the yielding finger's advance must be paid for."""
+    from teleop.control import two_layer
+    monkeypatch.setattr(two_layer, "yield_charge_j", lambda *a: 0.0)
+    r = run_loop(SUITE, P, replace(PUSH, sensor_gain_factor=1.0 / 3.0))
+    assert r.yielding_hand == 3
+    assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+
+
+@pytest.mark.parametrize("gain", [1.0, 1.0 / 3.0, 3.0])
+def test_no_alarm_on_a_fixed_wall_and_the_same_loop(gain: float) -> None:
+    """A wall that does not yield is never flagged, whatever the gain: the guard changes
+    nothing there (the same trajectory as with the guard off)."""
+    sc = replace(SQUEEZE, sensor_gain_factor=gain)
+    on, off = run_loop(SUITE, P, sc), run_loop(SUITE, GUARD_OFF, sc)
+    assert on.yielding_hand == 0
+    assert on.finger == off.finger
 
 
 @pytest.mark.parametrize("base", [PUSH, SQUEEZE], ids=["yielding", "fixed"])

@@ -1,0 +1,124 @@
+"""A guard that does not trust the tactile gain: yielding contacts are charged at servo torque.
+
+The environment-port layer (:mod:`teleop.control.object_port`) charges the work the pads do on
+the object from the tactile cells' force estimate.  Its bound rests on the cells' gain being
+within the margin ``m`` of their calibration: cells reading ``g < 1/m`` of the true force make
+the tank pay only ``m g`` of the work.  On an elastic object that under-charge is bounded and
+given back with the squeeze (the object returns what it took and the estimate credits the same
+fraction of it), but an object that *yields* (crushes, slides away, flows) keeps every joule:
+the deficit grows with every millimetre the pads advance, without limit.
+
+What tells a yielding contact apart does not depend on the gain: the *shape* of force against
+advance.  An elastic contact pushes back harder the further the pads go in (its force rises
+roughly in proportion to the advance, or faster as a core is met); a yielding one stops
+rising while the pads keep advancing.  Per finger, over one contact episode (the estimated
+pad force above zero), this guard follows
+
+* the finger's pad advance ``q`` along the contact normals driven by its proximal joint (the
+  encoder's angle, not the motor-based distal estimate, which grows with the tendon's stretch
+  as the force rises and would read a stalled, squeezing finger as advancing), each pad's
+  share weighted by its estimated force (a gain error scales the weights alike, so ``q`` is in
+  metres whatever the gain), and
+* chords of force against advance over windows of ``yield_window_m`` of advance: the chord
+  stiffness ``(F - F_a) / (q - q_a)`` (also gain-scaled, but only its ratio to the episode's
+  stiffest chord is used).
+
+Two chords in a row below ``yield_stiffness_ratio`` of the episode's stiffest chord flag the
+finger as yielding until its contact ends (a yield keeps its chords flat; noise makes one flat
+chord now and then, rarely two in a row).  From then on the tank stops trusting the cells for that
+finger: each inward motion ``dx`` of its motor (joint side) is charged ``tau_max dx``, the most
+work the servo can do through the tendon whatever the object and the cells say, and nothing the
+cells report for it is credited back.  The tank then empties at the servo's worst case, the
+reservation (:func:`teleop.control.passivity_layer.reserve_project`) freezes the set-point
+when it is spent, and the hand reports the finger (an alarm: the contact is crushing or
+sliding and its tactile estimate is not relied on).
+
+What it cannot see: physics that absorbs energy while its force keeps rising at least at
+``yield_stiffness_ratio`` of its initial stiffness (a strongly work-hardening material with
+cells reading low); crushing done by the distal link alone while the proximal joint stands
+still; and the advance before the flag (at most about two windows: a deficit of at most
+``2 F window (1 - m g)`` per finger and contact).  All are stated in docs/controllers.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class YieldTrack:
+    """One finger's contact episode as the guard sees it."""
+
+    in_contact: bool = False
+    advance_m: float = 0.0  # force-weighted pad advance since the episode began
+    anchor_m: float = 0.0  # advance at the start of the current chord
+    anchor_n: float = 0.0  # estimated force there
+    stiffest_n_per_m: float = 0.0  # stiffest chord of the episode (gain-scaled)
+    anchor_motor_rad: float = 0.0  # motor angle (joint side) there
+    low_chords: int = 0  # flat chords in a row
+    yielding: bool = False  # latched until the contact ends
+
+
+NO_CONTACT = YieldTrack()
+
+#: flat chords in a row that flag a yield
+LOW_CHORDS = 2
+
+
+def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: float,
+               window_m: float, stiffness_ratio: float) -> YieldTrack:
+    """One hand sample of one finger: ``force_n`` the estimated total pad force at its end,
+    ``advance_m`` the pads' force-weighted advance into the object over it
+    (:func:`pad_advance_m`), ``motor_rad`` its motor angle (joint side).  A chord is only
+    judged while the motor wound in over it: a force falling while the servo lets go is an
+    unloading, not a yield."""
+    if force_n <= 0.0:
+        return NO_CONTACT
+    if not prev.in_contact:
+        # the episode begins where the force is first seen: chords are measured from here
+        # (the force jumps from zero at the first reading; that step is not a stiffness)
+        return YieldTrack(in_contact=True, anchor_n=force_n, anchor_motor_rad=motor_rad)
+    q = prev.advance_m + advance_m
+    span = q - prev.anchor_m
+    if span < 0.0:
+        # backing out: the next chord starts from the furthest-back point (an elastic
+        # contact unloads and reloads along the same curve)
+        return YieldTrack(True, q, q, force_n, prev.stiffest_n_per_m, motor_rad, 0,
+                          prev.yielding)
+    if span < window_m:
+        return YieldTrack(True, q, prev.anchor_m, prev.anchor_n, prev.stiffest_n_per_m,
+                          prev.anchor_motor_rad, prev.low_chords, prev.yielding)
+    chord = (force_n - prev.anchor_n) / span
+    stiffest = max(prev.stiffest_n_per_m, chord)
+    flat = (stiffness_ratio > 0.0 and stiffest > 0.0 and chord < stiffness_ratio * stiffest
+            and motor_rad > prev.anchor_motor_rad)
+    low = prev.low_chords + 1 if flat else 0
+    return YieldTrack(True, q, q, force_n, stiffest, motor_rad, low,
+                      prev.yielding or low >= LOW_CHORDS)
+
+
+def pad_advance_m(forces_n: tuple[float, float], places_m: tuple[float, float],
+                  dtp_rad: float, distal_rad: float, proximal_length_m: float) -> float:
+    """The pads' advance along their normals over a sample in which the proximal joint
+    turned ``dtp_rad`` (distal bend held at ``distal_rad``), weighted by the pads' forces
+    ``(proximal, distal)`` acting at ``places_m`` along them: the proximal pad at ``r``
+    moves ``r dtp``, the distal pad at ``r`` moves ``(L cos t_d + r) dtp``."""
+    fp, fd = forces_n
+    total = fp + fd
+    if total <= 0.0:
+        return 0.0
+    rp, rd = places_m
+    lever = proximal_length_m * math.cos(distal_rad) + rd
+    return (fp * rp + fd * lever) * dtp_rad / total
+
+
+def yield_charge_j(x: tuple[float, ...], x_prev: tuple[float, ...],
+                   yielding: tuple[bool, ...], torque_max_nm: float) -> float:
+    """What the tank pays for the yielding fingers' last sample: ``tau_max`` times each one's
+    inward motor motion (joint side), the servo's most work through the tendon."""
+    return sum(torque_max_nm * max(a - b, 0.0)
+               for a, b, y in zip(x, x_prev, yielding, strict=False) if y)
+
+
+__all__ = ["NO_CONTACT", "YieldTrack", "pad_advance_m", "step_yield", "yield_charge_j"]
