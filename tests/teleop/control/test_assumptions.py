@@ -57,6 +57,22 @@ def test_still_passive_when_the_servo_or_the_rate_is_not_as_modelled(base: Scena
     assert audit(replace(base, **broken)) == ""
 
 
+@pytest.mark.parametrize("base", [PUSH, SQUEEZE], ids=["yielding", "fixed"])
+@pytest.mark.parametrize("active", [{"op_damping": -3.0}, {"op_force_n": 10.0}],
+                         ids=["negative-damping-operator", "randomly-forcing-operator"])
+def test_an_active_operator_cannot_make_the_loop_generate_energy(base: Scenario,
+                                                                 active: dict) -> None:
+    """Operator passivity is the stability argument's assumption, not the bound's: an
+    operator that pumps energy in (negative damping, random forcing up to 10 N) gets out of
+    the loop no more than it put in plus the tanks, at every sample, while the hand still
+    works (the fingers do more work on the object than with the relaxed operator)."""
+    calm = run_loop(SUITE, P, base)
+    r = run_loop(SUITE, P, replace(base, **active))
+    assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
+    assert r.op_taken_j[-1] > calm.op_taken_j[-1]
+    assert r.env_net_out_j[-1] > 0.0
+
+
 def test_a_sensor_within_its_margin_keeps_the_bound() -> None:
     assert audit(replace(PUSH, sensor_gain_factor=1.0 / P.tactile.force_margin)) == ""
 
