@@ -114,19 +114,24 @@ class DelayLineState:
 
 def _lost(state: DelayLineState, p: DelayParams, i: int) -> tuple[bool, bool | None]:
     """(lost?, new Gilbert state) for message ``i``."""
+    return lost_draw(state.bad, p, i)
+
+
+def lost_draw(bad_before: bool | None, p: DelayParams, i: int) -> tuple[bool, bool | None]:
+    """(lost?, new Gilbert state) for message ``i`` with the chain in ``bad_before``."""
     if p.loss <= 0.0:
-        return False, state.bad
+        return False, bad_before
     u = _uniform(p.stream, i, 0)
     if p.loss_model == "bernoulli":
-        return u < p.loss, state.bad
+        return u < p.loss, bad_before
     if p.loss >= 1.0:
         return True, True
-    if state.bad is None:  # start in the stationary distribution
+    if bad_before is None:  # start in the stationary distribution
         bad = u < p.loss
     else:
         r = 1.0 / p.burst_length  # bad -> good
         g2b = min(1.0, p.loss * r / (1.0 - p.loss))  # good -> bad, so P(bad) = loss
-        bad = (u >= r) if state.bad else (u < g2b)
+        bad = (u >= r) if bad_before else (u < g2b)
     return bad, bad
 
 
