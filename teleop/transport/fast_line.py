@@ -5,11 +5,12 @@ reference), without rebuilding a frozen state and re-copying every message in fl
 message (a 1 s delay at 1 kHz holds a thousand).
 
 It makes the operations of the pure paths in their order: the loss draw
-(:func:`~teleop.transport.delay_line.lost_draw`), the one copy's delay with ``min``/``max``
-written as the comparisons they make, the in-order append (a sorted insertion otherwise),
-and on release the delay sum of the pure pops (one due message: ``+ (0 + d)``; several:
-``+ sum(delays)``) and their ``max``.  :meth:`FastLine.state` gives the pure state back (and
-:meth:`FastLine.of` takes one), so the pure functions can continue from either side.
+(:func:`~teleop.transport.delay_line.lost_draw`), the one copy's release
+(:func:`~teleop.transport.delay_line.plain_release`), the in-order append (a sorted
+insertion otherwise), and on release the delay sum of the pure pops (one due message:
+``+ (0 + d)``; several: ``+ sum(delays)``) and their ``max``.  :meth:`FastLine.state` gives
+the pure state back (and :meth:`FastLine.of` takes one), so the pure functions can continue
+from either side.
 ``tests/teleop/transport/test_fast_line.py`` holds the two to each other.
 """
 
@@ -19,13 +20,13 @@ import bisect
 from collections import deque
 
 from teleop.transport.delay_line import (
-    MAX_DELAY_S,
     TIME_EPS_S,
     DelayLineState,
     DelayParams,
     Delivered,
     Pending,
     lost_draw,
+    plain_release,
 )
 
 __all__ = ["FastLine", "fast_params"]
@@ -77,15 +78,7 @@ class FastLine:
             if lost:
                 self.n_lost += 1
                 return
-        d = params.delay_s + 0.0  # min(delay + no jitter, MAX_DELAY_S)
-        if d > MAX_DELAY_S:
-            d = MAX_DELAY_S
-        release = t_s + d
-        last = self.last_release_t_s
-        if not params.reorder and last > release:
-            release = last
-        if release > last:
-            self.last_release_t_s = release
+        release, self.last_release_t_s = plain_release(params, t_s, self.last_release_t_s)
         entry = Pending(release, 2 * i, t_s, payload, False)  # type: ignore[arg-type]
         pending = self.pending
         if not pending or _key(pending[-1]) <= _key(entry):
