@@ -106,17 +106,39 @@ def operator_step(state: OperatorState, p: OperatorParams, force_n: float,
     h = dt_s / n
     t, x, v = state.t_s, state.x_m, state.v_m_s
     out_j, in_j = state.delivered_j, state.taken_j
+    k, b, mass, travel = p.stiffness_n_per_m, p.damping_n_s_per_m, p.mass_kg, p.travel_m
+    # script_fraction(p, t + h) written out with its sums hoisted (the same operations)
+    close, ramp, hold, release, closed = p.close_s, p.ramp_s, p.hold_s, p.release_s, \
+        p.closed_fraction
+    cycle = close + ramp + hold + release
+    wrap = p.repeat and cycle > 0
+    ramp_hold = ramp + hold
+    ramp_hold_release = ramp + hold + release
     for _ in range(n):
-        x_ref = script_fraction(p, t + h) * p.travel_m
-        a = (p.stiffness_n_per_m * (x_ref - x) - p.damping_n_s_per_m * v - f_disp) / p.mass_kg
+        ts = t + h
+        if wrap:
+            ts = math.fmod(0.0 if ts < 0.0 else ts, cycle)  # max(ts, 0.0)
+        ts = ts - close
+        if ts <= 0:
+            frac = 0.0
+        elif ts < ramp:
+            frac = (0.5 - 0.5 * math.cos(math.pi * ts / ramp)) * closed
+        elif ts < ramp_hold:
+            frac = 1.0 * closed
+        elif ts < ramp_hold_release:
+            frac = (0.5 + 0.5 * math.cos(math.pi * (ts - ramp - hold) / release)) * closed
+        else:
+            frac = 0.0 * closed
+        x_ref = frac * travel
+        a = (k * (x_ref - x) - b * v - f_disp) / mass
         v += a * h
         x_old = x
         x += v * h
         t += h
         if x < 0.0:
             x, v = 0.0, max(v, 0.0)
-        elif x > p.travel_m:
-            x, v = p.travel_m, min(v, 0.0)
+        elif x > travel:
+            x, v = travel, min(v, 0.0)
         # the device pushes the trigger with -f_disp along x: work on the finger this substep
         w = -f_disp * (x - x_old)
         if w > 0.0:

@@ -311,15 +311,15 @@ def run_delay_sweep(
         if progress is not None:
             progress(len(done_runs), total, run)
 
-    pool = _Pool(workers)
-    try:
-        runs = pool.map(_run_one, [(runner, cfg, p, duration_s, criteria, False, keep_signals)
-                                   for p in points], done)
-        brackets = _refine(pool, runner, cfg, runs, controllers, to_refine, losses,
-                           refine_steps, duration_s, jitter_s, seed, criteria, done)
-    finally:
-        pool.close()
-    runs = runs + [r for r in done_runs if r.refine]
+    runs = _schedule(workers, runner, cfg, points, controllers, to_refine, losses,
+                     refine_steps, duration_s, jitter_s, seed, criteria, keep_signals, done)
+    refined = [r for r in done_runs if r.refine]
+    loss0 = 0.0 if 0.0 in losses else None
+    brackets = [] if loss0 is None else [
+        (c, *_bisect(max_stable_delay(runs, c, loss0), [r for r in refined
+                                                          if r.point.controller == c]))
+        for c in controllers]
+    runs = runs + refined
     runs.sort(key=lambda r: (list(controllers).index(r.point.controller), r.point.loss,
                              r.point.delay_s))
     measured = tuple((c, lo) for c, lo, _ in brackets)
@@ -327,33 +327,76 @@ def run_delay_sweep(
                        duration_s, time.perf_counter() - t0)
 
 
-def _refine(pool: _Pool, runner: PointRunner, cfg: TeleopConfig, runs: list[SweepRun],
-            controllers: Sequence[str], to_refine: Sequence[str], losses: Sequence[float],
-            steps: int, duration_s: float,
-            jitter_s: float, seed: int, criteria: StabilityCriteria,
-            done: Callable[[SweepRun], None]) -> list[tuple[str, float, float]]:
-    """Bisect each controller's stable/unstable bracket at zero loss, all controllers at once."""
-    loss0 = 0.0 if 0.0 in losses else None
-    if loss0 is None:
-        return []
-    brackets = {c: max_stable_delay(runs, c, loss0) for c in controllers}
-    for step in range(steps):
-        active = [c for c, (lo, hi) in brackets.items() if math.isfinite(hi) and
-                  not math.isnan(lo) and c in to_refine]
-        if not active:
-            break
-        jobs = []
-        for c in active:
-            lo, hi = brackets[c]
-            mid = 0.5 * (lo + hi)
-            ci = list(controllers).index(c)
-            p = SweepPoint(c, mid, jitter_s, loss0, _point_seed(seed, ci, 1000 + step, 0),
-                           cfg.master.virtual.style, runs[0].point.object)
-            jobs.append((runner, cfg, p, duration_s, criteria, True))
-        for c, run in zip(active, pool.map(_run_one, jobs, done), strict=True):
-            lo, hi = brackets[c]
-            brackets[c] = (run.point.delay_s, hi) if run.metrics.stable else (lo, run.point.delay_s)
-    return [(c, lo, hi) for c, (lo, hi) in brackets.items()]
+def _bisect(bracket: tuple[float, float], steps: Sequence[SweepRun]) -> tuple[float, float]:
+    """``bracket`` narrowed by the bisection runs ``steps`` (in step order)."""
+    lo, hi = bracket
+    for run in steps:
+        lo, hi = (run.point.delay_s, hi) if run.metrics.stable else (lo, run.point.delay_s)
+    return lo, hi
+
+
+def _refinable(bracket: tuple[float, float]) -> bool:
+    lo, hi = bracket
+    return math.isfinite(hi) and not math.isnan(lo)
+
+
+def _schedule(workers: int, runner: PointRunner, cfg: TeleopConfig,
+              points: Sequence[SweepPoint], controllers: Sequence[str],
+              to_refine: Sequence[str], losses: Sequence[float], steps: int,
+              duration_s: float, jitter_s: float, seed: int, criteria: StabilityCriteria,
+              keep: bool, done: Callable[[SweepRun], None]) -> list[SweepRun]:
+    """Run the grid ``points`` (results in their order) and bisect each controller of
+    ``to_refine`` at zero loss for ``steps`` steps (results only through ``done``).
+
+    A controller's bisection starts as soon as its zero-loss grid runs are in (those run
+    first) and each step as soon as the one before it is, ahead of the rest of the grid
+    (:class:`~teleop.analysis.sweep_schedule.JobQueue`): the same runs as bisecting after
+    the whole grid, without the workers idling through the bisection."""
+    from teleop.analysis.sweep_schedule import JobQueue
+
+    loss0 = 0.0 if 0.0 in losses and steps > 0 else None
+    refine = [c for c in to_refine if loss0 is not None]
+    grid: list[SweepRun | None] = [None] * len(points)
+    waiting = {c: sum(1 for p in points if p.controller == c and p.loss == loss0)
+               for c in refine}
+    queue = JobQueue(workers)
+
+    def bisect_step(c: str, step: int, bracket: tuple[float, float]) -> None:
+        if step >= steps or not _refinable(bracket):
+            return
+        lo, hi = bracket
+        p = SweepPoint(c, 0.5 * (lo + hi), jitter_s, 0.0,
+                       _point_seed(seed, list(controllers).index(c), 1000 + step, 0),
+                       cfg.master.virtual.style, points[0].object)
+
+        def then(run: SweepRun) -> None:
+            done(run)
+            bisect_step(c, step + 1, _bisect(bracket, [run]))
+
+        queue.add((0.0,), _run_one, (runner, cfg, p, duration_s, criteria, True), then)
+
+    def grid_done(i: int) -> Callable[[SweepRun], None]:
+        def then(run: SweepRun) -> None:
+            grid[i] = run
+            done(run)
+            c = run.point.controller
+            if c in waiting and run.point.loss == loss0:
+                waiting[c] -= 1
+                if waiting[c] == 0:
+                    bisect_step(c, 0, max_stable_delay([r for r in grid if r is not None],
+                                                       c, 0.0))
+        return then
+
+    try:
+        for i, p in enumerate(points):
+            job = (runner, cfg, p, duration_s, criteria, False, keep)
+            first = p.controller in waiting and p.loss == loss0
+            queue.add((1.0 if first else 2.0, -_job_seconds(job)), _run_one, job,
+                      grid_done(i))
+        queue.run()
+    finally:
+        queue.close()
+    return [r for r in grid if r is not None]
 
 
 def as_dict(run: SweepRun) -> dict[str, Any]:

@@ -38,6 +38,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--reference", default=None, metavar="DIR",
                    help="lockstep only: a source tree of an earlier implementation (e.g. "
                    "`git archive REV | tar -x -C DIR`), run side by side with this one")
+    p.add_argument("--repeats", type=int, default=None, metavar="N",
+                   help="lockstep only: alternations of this tree and the reference, best of "
+                   "N each (default 2; more on a loaded machine)")
     p.set_defaults(run=run)
 
 
@@ -62,6 +65,10 @@ def run(args: argparse.Namespace) -> int:
         from services.bench_lockstep import check_reference
 
         kwargs["reference"] = str(check_reference(args.reference))
+    if getattr(args, "repeats", None) is not None:
+        if args.name != "lockstep" or args.repeats < 1:
+            raise UserInputError("--repeats: a count >= 1, only for `bench lockstep`")
+        kwargs["repeats"] = args.repeats
     info(args, f"bench {args.name}: running...")
     figures = fn(**kwargs)
     if args.json_path is None:

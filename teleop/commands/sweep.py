@@ -16,6 +16,7 @@ import math
 import os
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 from teleop.commands.common import (
@@ -202,9 +203,14 @@ def predict_direct(cfg: TeleopConfig) -> DirectPrediction:
                                 operator_damping_n_s_per_m=b_h, servo_stiffness_nm_per_rad=servo_k)
 
 
+def predicted_controllers(cfg: TeleopConfig) -> tuple[str, ...]:
+    """The controllers :func:`predicted_limits` predicts (and the sweep bisects)."""
+    return ("direct",) if cfg.hand.backend == "sim" else ()
+
+
 def predicted_limits(cfg: TeleopConfig) -> tuple[tuple[tuple[str, float], ...], tuple[str, ...]]:
     """The predicted largest stable one-way delay of direct control, and notes on it."""
-    if cfg.hand.backend != "sim":
+    if "direct" not in predicted_controllers(cfg):
         return (), ("no prediction: the hand is linearised on the simulated hand only",)
     from teleop.control.stability_limit import loop_gain
 
@@ -299,19 +305,29 @@ def run(args: argparse.Namespace) -> int:
         return _run_special(args, cfg, controllers, seed, args.workers or sc.workers)
     if args.mode == "live":
         workers = 1  # real-time runs share the machine; one at a time keeps timing honest
-    predicted, notes = predicted_limits(cfg)
-    runner = lockstep_runner if args.mode == "lockstep" else live_runner
-    progress = _Progress(not args.no_progress)
-    result = run_delay_sweep(cfg, delays, losses, controllers, args.mode, seed, duration,
-                             progress, runner=runner, jitter_s=jitter,
-                             workers=workers, refine_steps=refine, predicted=predicted,
-                             keep_signals=bool(args.rerun),
-                             refine_controllers=[c for c, _ in predicted])
-    progress.finish()
-    if notes:
-        from dataclasses import replace
+    # the prediction needs no run, and no run needs it (only which controllers it names):
+    # in lockstep it is worked out beside the runs; live runs keep the machine to themselves
+    side = ThreadPoolExecutor(1) if args.mode == "lockstep" else None
+    pending = side.submit(predicted_limits, cfg) if side is not None else None
+    try:
+        predicted, notes = predicted_limits(cfg) if pending is None else ((), ())
+        runner = lockstep_runner if args.mode == "lockstep" else live_runner
+        progress = _Progress(not args.no_progress)
+        result = run_delay_sweep(cfg, delays, losses, controllers, args.mode, seed, duration,
+                                 progress, runner=runner, jitter_s=jitter,
+                                 workers=workers, refine_steps=refine,
+                                 keep_signals=bool(args.rerun),
+                                 refine_controllers=list(predicted_controllers(cfg)))
+        progress.finish()
+        if pending is not None:
+            predicted, notes = pending.result()
+    finally:
+        if side is not None:
+            side.shutdown()
+    from dataclasses import replace
 
-        result = replace(result, notes=result.notes + notes)
+    result = replace(result, predicted_max_stable_delay_s=tuple(predicted),
+                     notes=result.notes + notes)
     out = sys.stderr if args.json_path == "-" else sys.stdout
     print(format_table(result), file=out)
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s ({args.mode})", file=out)

@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 from teleop.control.interface import ControlParams
+from teleop.control.memo import last_result
 from teleop.messages import FingerState
 
 Triple = tuple[float, float, float]
@@ -43,6 +44,7 @@ def grip_to_setpoints(grip_position_m: float, p: ControlParams) -> Triple:
                  for i in range(3))
 
 
+@last_result
 def max_pressures(fingers: tuple[FingerState, ...], p: ControlParams) -> Triple:
     """The largest pressure on each enabled finger (0 for disabled or missing fingers)."""
     out = [0.0, 0.0, 0.0]
@@ -53,6 +55,7 @@ def max_pressures(fingers: tuple[FingerState, ...], p: ControlParams) -> Triple:
     return (out[0], out[1], out[2])
 
 
+@last_result
 def combined_force_n(max_p: Triple, p: ControlParams) -> float:
     """Unfiltered displayed force from the per-finger maxima, tactile noise removed
     (:func:`deadband`)."""

@@ -35,6 +35,7 @@ from teleop.control.energy_tank import (
     tlc_damping,
 )
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
+from teleop.control.memo import last_result
 from teleop.control.model_render import (
     RenderState,
     damping_n_s_per_m,
@@ -192,6 +193,7 @@ def transparency_commands(s: ControllerStoreState, p: ControlParams,
     return ts, sp, force, mp, raw
 
 
+@last_result
 def forward_model(p: ControlParams, hand: HandState | None) -> tuple[float, ...]:
     """The hand's contact models as the master renders them: per enabled finger ``(contact_rad,
     k)``, ``k`` in N of trigger force per rad of set-point (pressure stiffness times

@@ -61,6 +61,7 @@ from teleop.transport.delay_line import (
     delay_params,
     next_release_s,
 )
+from teleop.transport.fast_line import FastLine, fast_params
 from teleop.transport.keys import SIGNALS, check_role, signal_spec
 from teleop.transport.safe_decoder import RejectCounts, SafeDecoder
 
@@ -165,8 +166,9 @@ class Inbox:
                  seq_jump_max: int | None = None) -> None:
         self.signal = signal
         self.spec = signal_spec(signal)
+        self._line: FastLine | None = None
+        self._state = DelayLineState()
         self.params = link_params(links, signal)
-        self.state = DelayLineState()
         self._decoder = decoder
         self._drop_stale = drop_stale
         self._last_seq: int | None = None
@@ -182,15 +184,44 @@ class Inbox:
         self.seq_rebases = 0  # sequence filter re-synchronised after a long outage
         self._seq_jumps: list[tuple[int, float]] = []  # consecutive seq_jump rejections (seq, t)
 
+    @property
+    def params(self) -> DelayParams:
+        """The link direction's impairments (settable: a fault changes them)."""
+        return self._params
+
+    @params.setter
+    def params(self, p: DelayParams) -> None:
+        state = self.state
+        self._params = p
+        self.state = state  # on the mutable line when ``p`` allows it
+
+    @property
+    def state(self) -> DelayLineState:
+        """The delay line's state (pure form; see :mod:`teleop.transport.fast_line`)."""
+        return self._line.state() if self._line is not None else self._state
+
+    @state.setter
+    def state(self, s: DelayLineState) -> None:
+        self._state = s
+        self._line = FastLine.of(s) if fast_params(self._params) else None
+
     def arrive(self, payload: bytes | Message, t_s: float) -> None:
         """A message entered the link at ``t_s`` (its delay counts from there): raw bytes, or
         (in-process bus only) a message object the codec round-trips exactly."""
-        self.state = delay_line_push(self.state, self.params, payload, t_s)
+        if self._line is not None:
+            self._line.push(self._params, payload, t_s)
+        else:
+            self._state = delay_line_push(self._state, self._params, payload, t_s)  # type: ignore[arg-type]
+
+    def _pop_due(self, now_s: float) -> list[Delivered]:
+        if self._line is not None:
+            return self._line.pop_due(now_s)
+        self._state, due = delay_line_pop_due(self._state, now_s)
+        return due
 
     def release(self, now_s: float) -> list[Received]:
         """Decode and return everything due at ``now_s``."""
-        self.state, due = delay_line_pop_due(self.state, now_s)
-        return self._deliver(due)
+        return self._deliver(self._pop_due(now_s))
 
     def arrive_and_release(self, arrivals: Iterable[tuple[bytes, float]],
                            now_s: float) -> list[Received]:
@@ -201,13 +232,11 @@ class Inbox:
         """
         due: list[Delivered] = []
         for payload, t_s in arrivals:
-            self.state = delay_line_push(self.state, self.params, payload, t_s)
-            pending = self.state.pending
-            if pending and pending[0].release_t_s <= now_s:
-                self.state, got = delay_line_pop_due(self.state, now_s)
-                due += got
-        self.state, got = delay_line_pop_due(self.state, now_s)
-        due += got
+            self.arrive(payload, t_s)
+            first = self.next_release_s()
+            if first is not None and first <= now_s:
+                due += self._pop_due(now_s)
+        due += self._pop_due(now_s)
         due.sort(key=lambda d: d.release_t_s)
         return self._deliver(due)
 
@@ -324,7 +353,9 @@ class Inbox:
 
     def next_release_s(self) -> float | None:
         """When the next message is due, if any is in flight."""
-        return next_release_s(self.state)
+        if self._line is not None:
+            return self._line.next_release_s()
+        return next_release_s(self._state)
 
     def stats(self) -> LinkStats:
         """This signal's counters."""

@@ -114,19 +114,24 @@ class DelayLineState:
 
 def _lost(state: DelayLineState, p: DelayParams, i: int) -> tuple[bool, bool | None]:
     """(lost?, new Gilbert state) for message ``i``."""
+    return lost_draw(state.bad, p, i)
+
+
+def lost_draw(bad_before: bool | None, p: DelayParams, i: int) -> tuple[bool, bool | None]:
+    """(lost?, new Gilbert state) for message ``i`` with the chain in ``bad_before``."""
     if p.loss <= 0.0:
-        return False, state.bad
+        return False, bad_before
     u = _uniform(p.stream, i, 0)
     if p.loss_model == "bernoulli":
-        return u < p.loss, state.bad
+        return u < p.loss, bad_before
     if p.loss >= 1.0:
         return True, True
-    if state.bad is None:  # start in the stationary distribution
+    if bad_before is None:  # start in the stationary distribution
         bad = u < p.loss
     else:
         r = 1.0 / p.burst_length  # bad -> good
         g2b = min(1.0, p.loss * r / (1.0 - p.loss))  # good -> bad, so P(bad) = loss
-        bad = (u >= r) if state.bad else (u < g2b)
+        bad = (u >= r) if bad_before else (u < g2b)
     return bad, bad
 
 
@@ -197,19 +202,26 @@ def _push_general(state: DelayLineState, params: DelayParams, payload: bytes, t_
                           state.n_delivered, bad, last, state.delay_sum_s, state.delay_max_s)
 
 
-def _push_plain(state: DelayLineState, params: DelayParams, payload: bytes, t_s: float,
-                i: int) -> DelayLineState:
-    """:func:`delay_line_push` without loss, duplicates or jitter: the same operations on the
-    one copy (``min``/``max`` written as the comparisons they make), none of the draws."""
+def plain_release(params: DelayParams, t_s: float, last: float) -> tuple[float, float]:
+    """(release time, new last release) of the one copy of a message sent at ``t_s`` on a
+    link without jitter: ``_sample_delay`` and the FIFO ``max`` of :func:`_push_general`
+    written as the comparisons they make."""
     d = params.delay_s + 0.0  # _sample_delay with no jitter
     if d > MAX_DELAY_S:
         d = MAX_DELAY_S
     release = t_s + d
-    last = state.last_release_t_s
     if not params.reorder and last > release:
         release = last
     if release > last:
         last = release
+    return release, last
+
+
+def _push_plain(state: DelayLineState, params: DelayParams, payload: bytes, t_s: float,
+                i: int) -> DelayLineState:
+    """:func:`delay_line_push` without loss, duplicates or jitter: the same operations on the
+    one copy (``min``/``max`` written as the comparisons they make), none of the draws."""
+    release, last = plain_release(params, t_s, state.last_release_t_s)
     pending = _insert(state.pending, Pending(release, 2 * i, t_s, payload, False))
     return DelayLineState(pending, i + 1, state.n_lost, state.n_duplicated, state.n_delivered,
                           state.bad, last, state.delay_sum_s, state.delay_max_s)

@@ -41,3 +41,10 @@ def test_bench_reference_must_be_a_source_tree(tmp_path: Path,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--reference" in err[0] and "not a source tree" in err[0]
     assert main(["bench", "sim", "--reference", str(tmp_path)]) == 2
+
+
+def test_bench_repeats_only_for_lockstep(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "sim", "--repeats", "3"]) == 2
+    assert main(["bench", "lockstep", "--repeats", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("--repeats") == 2
