@@ -1,6 +1,12 @@
 """The yielding object of :mod:`sim.crush` over the object array ``o`` of
 :mod:`sim.compiled_kernel` (``o[8]`` yield force N, ``o[9]`` yield hardening N/m): the same
-arithmetic in the same order as the Python functions of that name."""
+arithmetic in the same order as the Python functions of that name.
+
+Numba's disk cache keys each function on its own file: the step and the hand loop that inline
+these (:mod:`sim.compiled_step`, :mod:`sim.compiled_runs`) keep their cached machine code when
+only this file changes; touch them too (or run with a fresh ``NUMBA_CACHE_DIR``), as a mutant
+of this file showed.
+"""
 
 from __future__ import annotations
 
