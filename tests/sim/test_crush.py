@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from test_compiled_engine import _hand_grasp
+from test_compiled_engine import EFFECTS, _hand_grasp
 
 from sim.audit import object_work_j, pad_depths
 from sim.compiled import pack_object
@@ -16,6 +16,7 @@ from sim.compiled_crush import mean_yield_force as kernel_mean_yield_force
 from sim.contact import ContactObject
 from sim.crush import mean_yield_force, yield_pad_spring
 from sim.engine import ENGINES
+from sim.experiments import ExperimentSpec, run_experiment
 from sim.finger import MotorCommand, default_finger_params, finger_step, initial_finger_state
 from teleop.effects import EffectSet
 
@@ -127,3 +128,18 @@ def test_elastic_default_has_no_dent() -> None:
     st, _ = _hand_grasp("compiled", ContactObject(kind="cylinder"), 2000, release=True)
     assert all(f.crush_m == (0.0, 0.0) for f in st.fingers)
     assert math.isclose(st.fingers[0].pads[0] + st.fingers[0].pads[2], 0.0)  # opened
+
+
+def test_the_grasp_experiment_on_a_yielding_object_matches_the_reference() -> None:
+    """The finger loop (``teleop sim grasp``: the compiled run packs the dents in its state
+    array and back) against the Python reference, with the effects on."""
+    obj = ContactObject(kind="cylinder", yield_force_n=2.0)
+    runs = [run_experiment(ExperimentSpec("grasp", duration_s=6.0), default_finger_params(),
+                           obj, EFFECTS, engine_name=e) for e in ENGINES]
+    a, b = (r.recording for r in runs)
+    for col in ("motor_angle_rad", "proximal_angle_rad", "distal_angle_rad"):
+        assert np.max(np.abs(a.column(col) - b.column(col))) <= TOL_RAD, col
+    assert np.max(np.abs(a.data - b.data)) <= 1e-6  # pressures too
+    peak = [float(np.max(b.column(f"pressure_{i}"))) for i in range(9)]
+    assert max(peak[:5]) > 500.0  # the proximal pad crushed the skin down to the core
+    assert max(peak[5:]) < 100.0  # the distal pad's skin yielded (elastic cylinder: 904)
