@@ -10,6 +10,12 @@ energy it takes from a finger over a physics step in which the depth goes from `
 ``d1`` is the force times the depth change: trapezoidal in the elastic part on each side of
 the core's depth (exact for this piecewise-linear spring), the damper at the mean rate ``(d1
 - d0) / dt``.
+A yielding object (``yield_force_n > 0``, :mod:`sim.crush`) pushes back with its skin's spring
+on the elastic depth ``d - dent`` (held at the yield level while the dent grows) and its damper
+on that depth's rate; the dent under each pad is read from the physics state
+(``FingerState.crush_m``, grown by the depth of the state itself), and the elastic force's mean
+is exact between the law's kinks, so the work that crushes the dent is counted as delivered to
+the object, and is never taken back.
 Positive work is energy delivered to the environment, negative work energy taken from it
 (the object's springs pushing the finger back).
 
@@ -25,15 +31,17 @@ from __future__ import annotations
 import math
 
 from sim.contact import ContactObject, mean_spring_force, pad_contact
+from sim.crush import pad_dent, yield_pad_work_j
 from sim.params import FingerParams
 from sim.readout import distal_origin
 from sim.state import FingerState
 
 _PROX_PAD_START_M = 0.010  # where the proximal pad starts along the link (as sim.finger)
 
-#: (stiffness scale, depth m) of the proximal and distal pads
-PadDepths = tuple[float, float, float, float]
-NO_CONTACT: PadDepths = (0.0, 0.0, 0.0, 0.0)
+#: (stiffness scale, depth m) of the proximal and distal pads, then their dents m (a yielding
+#: object's; 0 for an elastic one)
+PadDepths = tuple[float, float, float, float, float, float]
+NO_CONTACT: PadDepths = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 def pad_depths(state: FingerState, p: FingerParams, obj: ContactObject) -> PadDepths:
@@ -49,7 +57,12 @@ def pad_depths(state: FingerState, p: FingerParams, obj: ContactObject) -> PadDe
     ax, ay = x - sa * po, y + ca * po
     bx, by = ax + ca * p.distal_length_m, ay + sa * p.distal_length_m
     s_d, d_d, _, _, _ = pad_contact(obj, cphi, sphi, ax, ay, bx, by)
-    return (s_p, max(d_p, 0.0), s_d, max(d_d, 0.0))
+    d_p = max(d_p, 0.0)
+    d_d = max(d_d, 0.0)
+    if obj.yield_force_n > 0.0:
+        crush_p, crush_d = state.crush_m
+        return (s_p, d_p, s_d, d_d, pad_dent(obj, crush_p, d_p), pad_dent(obj, crush_d, d_d))
+    return (s_p, d_p, s_d, d_d, 0.0, 0.0)
 
 
 def _pad_work(s0: float, d0: float, s1: float, d1: float, obj: ContactObject,
@@ -69,6 +82,11 @@ def object_work_j(before: PadDepths, after: PadDepths, obj: ContactObject,
     """Work the finger did on the object over one physics step (+ delivered, - taken)."""
     if obj.kind == "none":
         return 0.0
+    if obj.yield_force_n > 0.0:
+        return (yield_pad_work_j(before[0], before[1], before[4], after[0], after[1], after[4],
+                                 obj, dt_s)
+                + yield_pad_work_j(before[2], before[3], before[5], after[2], after[3],
+                                   after[5], obj, dt_s))
     return (_pad_work(before[0], before[1], after[0], after[1], obj, dt_s)
             + _pad_work(before[2], before[3], after[2], after[3], obj, dt_s))
 

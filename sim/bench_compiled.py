@@ -5,6 +5,10 @@ The same 1 kHz controller as :func:`sim.bench._finger_run` / :func:`sim.bench._h
 for the finger), stepping the compiled model (:func:`sim.compiled_step.advance`, the step the
 equivalence tests hold to the Python reference).  ``tests/sim/test_compiled_engine.py`` checks
 that these loops follow the Python benchmark's trajectory.
+
+Numba's disk cache keys on this file alone, not on the kernels it inlines: a change of the
+step or of the array layouts (:mod:`sim.compiled_kernel`; the dents of a yielding object moved
+the flexure angles to ``X_FLEX`` = 16) must touch this file too, or a stale cache runs.
 """
 
 from __future__ import annotations

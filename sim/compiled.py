@@ -57,7 +57,8 @@ def pack_params(p: FingerParams) -> tuple[np.ndarray, np.ndarray]:
 def pack_object(obj: ContactObject) -> np.ndarray:
     """The object array ``o``."""
     return np.array([_KINDS[obj.kind], obj.x_m, obj.y_m, obj.radius_m, obj.stiffness_n_per_m,
-                     obj.damping_n_s_per_m, obj.core_depth_m, obj.core_stiffness_n_per_m])
+                     obj.damping_n_s_per_m, obj.core_depth_m, obj.core_stiffness_n_per_m,
+                     obj.yield_force_n, obj.yield_hardening_n_per_m])
 
 
 def pack_effects(eff: EffectSet) -> np.ndarray:
@@ -76,7 +77,8 @@ def command_row(cmd: MotorCommand) -> list[float]:
 def state_array(s: FingerState) -> np.ndarray:
     """The state array ``x`` of ``s``."""
     return np.array([s.t_s, s.prox_rad, s.prox_vel_rad_s, s.motor_rad, s.motor_vel_rad_s,
-                     s.tendon_force_n, *s.drive, *s.pads, *s.flex_rad, *s.flex_vel_rad_s])
+                     s.tendon_force_n, *s.drive, *s.pads, *s.crush_m, *s.flex_rad,
+                     *s.flex_vel_rad_s])
 
 
 def state_from_array(x: np.ndarray, command: CommandLine) -> FingerState:
@@ -85,7 +87,7 @@ def state_from_array(x: np.ndarray, command: CommandLine) -> FingerState:
     n = (len(v) - X_FLEX) // 2
     return FingerState(v[0], v[1], v[2], tuple(v[X_FLEX:X_FLEX + n]),
                        tuple(v[X_FLEX + n:]), v[3], v[4], v[5], (v[6], v[7], v[8], v[9]),
-                       (v[10], v[11], v[12], v[13]), command)
+                       (v[10], v[11], v[12], v[13]), command, (v[14], v[15]))
 
 
 def command_delay(p: FingerParams, eff: EffectSet) -> float:

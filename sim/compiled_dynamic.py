@@ -5,6 +5,10 @@ row (1 kHz) paid the interpreter.  Here the rows' commands, the delay line (``de
 the driver's delay, as ``sim.finger._step`` keeps it), the segments that restart settled after
 an excluded stretch, and the physics all run compiled; the result is the reference's to
 rounding (``tests/sim/test_compiled_engine.py``).
+
+Numba's disk cache keys on this file alone, not on the kernels it inlines: a change of the
+step or of the array layouts (:mod:`sim.compiled_kernel`; the dents of a yielding object moved
+the flexure angles to ``X_FLEX`` = 16) must touch this file too, or a stale cache runs.
 """
 
 from __future__ import annotations

@@ -9,13 +9,14 @@ Layouts (indices are the ``X_*``, ``C_*``, ``K_*``, ``O_*``, ``E_*`` constants):
 
 * state ``x`` (``X_FLEX + 2 n``): time, proximal angle and speed, motor angle and speed, tendon
   tension, drive (backlash gap, servo set-point, effort, asked effort), pads (proximal force,
-  where, distal force, where), then the ``n`` flexure angles and their ``n`` speeds;
+  where, distal force, where), the dents of a yielding object under the proximal and the
+  distal pad (``sim.crush``), then the ``n`` flexure angles and their ``n`` speeds;
 * command ``c`` (5): mode (0 position, 1 force, 2 velocity), goal, speed, force units, torque
   limit (the command in force, after any delay: the delay line stays in Python);
 * constants ``k`` (see :func:`sim.compiled.pack_params`) and the damping pieces ``dsegs``
   (rows of upper input bound, u0, d0, exponent);
-* object ``o`` (8): kind (0 none, 1 cylinder, 2 block), x, y, radius, stiffness, damping, core
-  depth, core stiffness;
+* object ``o`` (10): kind (0 none, 1 cylinder, 2 block), x, y, radius, stiffness, damping, core
+  depth, core stiffness, yield force, yield hardening;
 * effects ``e`` (12): the fields of ``teleop.effects.EffectSet`` in their order.
 
 Every function is ``@njit(cache=True)``: compiled once, then loaded from numba's disk cache
@@ -32,7 +33,8 @@ from numba import njit
 X_T, X_PHI, X_VPHI, X_TH, X_VM, X_TEN = 0, 1, 2, 3, 4, 5
 X_GAP, X_REF, X_U, X_UCMD = 6, 7, 8, 9
 X_PADS = 10
-X_FLEX = 14
+X_CRUSH = 14
+X_FLEX = 16
 MODE_POSITION, MODE_FORCE, MODE_VELOCITY = 0.0, 1.0, 2.0
 (K_L12_0, K_KSEG, K_UPN, K_RM, K_RB, K_KB, K_PRELOAD, K_CPHI, K_CSEG, K_MPHI, K_MFL, K_MM, K_KT,
  K_CT, K_SLACK, K_PROX, K_SEG, K_P1X, K_P1Y, K_P2X, K_P2Y, K_PO, K_LD, K_LO, K_HI, K_SLO, K_SHI,

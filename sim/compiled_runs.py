@@ -14,12 +14,14 @@ import math
 import numpy as np
 from numba import njit
 
+from sim.compiled_crush import pad_dent, yield_pad_work
 from sim.compiled_kernel import (
     K_LD,
     K_PADSTART,
     K_PO,
     K_PROX,
     K_SEG,
+    X_CRUSH,
     X_FLEX,
     X_PHI,
     mean_spring_force,
@@ -48,10 +50,11 @@ def run_finger(x: np.ndarray, cmds: np.ndarray, dts: np.ndarray, k: np.ndarray,
 
 
 @njit(cache=True)
-def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray) -> tuple[float, float, float, float]:
+def pad_depths(x: np.ndarray, k: np.ndarray,
+               o: np.ndarray) -> tuple[float, float, float, float, float, float]:
     """``sim.audit.pad_depths`` over the arrays."""
     if o[0] == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     phi = x[X_PHI]
     cphi = math.cos(phi)
     sphi = math.sin(phi)
@@ -72,7 +75,12 @@ def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray) -> tuple[float, floa
     bx = ax + ca * k[K_LD]
     by = ay + sa * k[K_LD]
     s_d, d_d, _, _, _ = pad_contact(o, cphi, sphi, ax, ay, bx, by)
-    return s_p, max(d_p, 0.0), s_d, max(d_d, 0.0)
+    d_p = max(d_p, 0.0)
+    d_d = max(d_d, 0.0)
+    if o[8] > 0.0:
+        return (s_p, d_p, s_d, d_d, pad_dent(o, x[X_CRUSH], d_p),
+                pad_dent(o, x[X_CRUSH + 1], d_d))
+    return s_p, d_p, s_d, d_d, 0.0, 0.0
 
 
 @njit(cache=True)
@@ -117,11 +125,11 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
     speed]); with ``audit`` the work on the object is added to ``delivered``/``taken`` per
     finger at every step, as ``SimHand.read`` does.  Returns the steps taken."""
     nf = xs.shape[0]
-    depths = np.zeros((nf, 4))
+    depths = np.zeros((nf, 6))
     if audit:
         for i in range(nf):
-            depths[i, 0], depths[i, 1], depths[i, 2], depths[i, 3] = pad_depths(xs[i], k,
-                                                                                objs[i])
+            b = depths[i]
+            b[0], b[1], b[2], b[3], b[4], b[5] = pad_depths(xs[i], k, objs[i])
     done = 0
     for _ in range(steps):
         if pre[0] + 0.5 * dt > t_end:
@@ -133,10 +141,16 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
         pre[0] = pre[0] + dt
         if audit:
             for i in range(nf):
-                s_p, d_p, s_d, d_d = pad_depths(xs[i], k, objs[i])
-                w = (_pad_work(depths[i, 0], depths[i, 1], s_p, d_p, objs[i], dt)
-                     + _pad_work(depths[i, 2], depths[i, 3], s_d, d_d, objs[i], dt))
-                depths[i, 0], depths[i, 1], depths[i, 2], depths[i, 3] = s_p, d_p, s_d, d_d
+                o = objs[i]
+                s_p, d_p, s_d, d_d, c_p, c_d = pad_depths(xs[i], k, o)
+                b = depths[i]
+                if o[8] > 0.0:
+                    w = (yield_pad_work(b[0], b[1], b[4], s_p, d_p, c_p, o, dt)
+                         + yield_pad_work(b[2], b[3], b[5], s_d, d_d, c_d, o, dt))
+                else:
+                    w = (_pad_work(b[0], b[1], s_p, d_p, o, dt)
+                         + _pad_work(b[2], b[3], s_d, d_d, o, dt))
+                b[0], b[1], b[2], b[3], b[4], b[5] = s_p, d_p, s_d, d_d, c_p, c_d
                 if w > 0.0:
                     delivered[i] += w
                 else:

@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sim.compiled_crush import pad_law
 from sim.compiled_kernel import (
     E_BACKLASH,
     E_GRAVITY,
@@ -48,6 +49,7 @@ from sim.compiled_kernel import (
     K_UMAX,
     K_UPN,
     KIND_NONE,
+    X_CRUSH,
     X_FLEX,
     X_GAP,
     X_PADS,
@@ -63,7 +65,6 @@ from sim.compiled_kernel import (
     motor_effort,
     motor_friction,
     pad_contact,
-    pad_spring,
 )
 
 
@@ -140,6 +141,8 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
     pc_x = 0.0
     dc_n = 0.0
     dc_x = 0.0
+    crush_p = x[X_CRUSH]
+    crush_d = x[X_CRUSH + 1]
     if o[0] != KIND_NONE:
         cphi = math.cos(phi)
         sphi = math.sin(phi)
@@ -150,8 +153,7 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
         if depth > 0.0:
             cx_ = ax0 + tt * (prox_len - ax0)
             jn = -po * nx + cx_ * ny
-            fe, ke = pad_spring(o, scale, depth)
-            ce = o[5] * scale
+            fe, ke, ce, crush_p = pad_law(o, scale, depth, crush_p)
             force = fe - ce * jn * v_phi
             if force > 0.0:
                 f_phi += fe * jn
@@ -174,8 +176,7 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
             vn = jn_phi * v_phi
             for i in range(n):
                 vn += jns[i] * fvel[i]
-            fe, ke = pad_spring(o, scale, depth)
-            ce = o[5] * scale
+            fe, ke, ce, crush_d = pad_law(o, scale, depth, crush_d)
             force = fe - ce * vn
             if force > 0.0:
                 fk = fe
@@ -295,3 +296,5 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
     x[X_PADS + 1] = pc_x
     x[X_PADS + 2] = dc_n
     x[X_PADS + 3] = dc_x
+    x[X_CRUSH] = crush_p
+    x[X_CRUSH + 1] = crush_d

@@ -11,6 +11,11 @@ object. A cylinder touches a pad at one point; a block presses a pad as a Winkle
 (stiffness spread uniformly along the pad), whose resultant acts at the centroid of the
 pressed part.
 
+A yielding object (``yield_force_n`` > 0, N) has a skin that crushes plastically: each pad
+leaves a permanent dent (m) and the skin's spring pushes back ``k s (d - dent)``, at most the
+yield level ``s (yield_force_n + yield_hardening_n_per_m * dent)``; the work into the dent is
+never returned (the law, with units, in :mod:`sim.crush`).
+
 Pressure: each link's contact force lands at a point along the link; every sensor of that link
 reads ``pressure_per_n * F * kernel(distance)``, a narrow Gaussian (the two sensors nearest a
 cylinder read strongly) plus a weak exponential tail (the rubber spreads the load to
@@ -38,6 +43,8 @@ class ContactObject:
     damping_n_s_per_m: float = 5.0
     core_depth_m: float = 0.012
     core_stiffness_n_per_m: float = 2e5
+    yield_force_n: float = 0.0  # > 0: the skin crushes plastically (sim.crush); 0: elastic
+    yield_hardening_n_per_m: float = 0.0
 
 
 NO_OBJECT = ContactObject()
@@ -49,7 +56,9 @@ def contact_object_from_config(cfg: ObjectConfig) -> ContactObject:
                          stiffness_n_per_m=cfg.stiffness_n_per_m,
                          damping_n_s_per_m=cfg.damping_n_s_per_m,
                          core_depth_m=cfg.core_depth_m,
-                         core_stiffness_n_per_m=cfg.core_stiffness_n_per_m)
+                         core_stiffness_n_per_m=cfg.core_stiffness_n_per_m,
+                         yield_force_n=cfg.yield_force_n,
+                         yield_hardening_n_per_m=cfg.yield_hardening_n_per_m)
 
 
 def pad_spring(obj: ContactObject, scale: float, depth_m: float) -> tuple[float, float]:

@@ -49,7 +49,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from sim.contact import ContactObject, contact_object_from_config, pad_contact, pad_spring
+from sim.contact import ContactObject, contact_object_from_config, pad_contact
+from sim.crush import pad_law
 from sim.motor import HOLD_ZERO, MotorCommand, apply_effort_effects, friction_force_n
 from sim.params import JOINT_RATIO, FingerParams, default_finger_params
 from sim.readout import FingerOutputs, finger_energy_j, finger_outputs, tendon_stretch_m
@@ -214,17 +215,17 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
     fk = ke = ce = vn = 0.0
     # --- contact on the pads -------------------------------------------------------------
     pc_n = pc_x = dc_n = dc_x = 0.0
+    crush = state.crush_m
     if obj.kind != "none":
         cphi = math.cos(phi)
         sphi = math.sin(phi)
-        cc = obj.damping_n_s_per_m
+        crush_p, crush_d = crush
         ax0 = _PROX_PAD_START_M
         scale, depth, tt, nx, ny = pad_contact(obj, cphi, sphi, ax0, po, prox_len, po)
         if depth > 0.0:
             px = ax0 + tt * (prox_len - ax0)
             jn = -po * nx + px * ny
-            fe, ke = pad_spring(obj, scale, depth)
-            ce = cc * scale
+            fe, ke, ce, crush_p = pad_law(obj, scale, depth, crush_p)
             force = fe - ce * jn * v_phi
             if force > 0.0:
                 f_phi += fe * jn
@@ -245,8 +246,7 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
             vn = jn_phi * v_phi
             for i in range(n):
                 vn += jl[i] * fvel[i]
-            fe, ke = pad_spring(obj, scale, depth)
-            ce = cc * scale
+            fe, ke, ce, crush_d = pad_law(obj, scale, depth, crush_d)
             force = fe - ce * vn
             if force > 0.0:
                 fk = fe
@@ -256,6 +256,7 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
                 jns = jl
                 dc_n = force
                 dc_x = tt * ld
+        crush = (crush_p, crush_d)
     # --- linearly implicit velocities with the tendon tension solved in closed form -------
     # generalised tendon force per newton of tension: r_b on phi, g_i = -dl12/ds_i on s_i,
     # -r_m on the motor
@@ -348,7 +349,7 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
         gap_n = 0.0
     return FingerState(t + dt, phi_n, v_phi_n, tuple(flex_n), tuple(a_fl), th_m_n, v_m_n,
                        tension, (gap_n, ref, u, u_cmd), (pc_n, pc_x, dc_n, dc_x),
-                       (active, cmd, pending))
+                       (active, cmd, pending), crush)
 
 
 def finger_step(state: FingerState, cmd: MotorCommand, params: FingerParams,

@@ -35,7 +35,7 @@ measurements, as the issue asks):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 # Table 4.2, model column (force N -> proximal rad) and Table 4.1 (input units -> shaft rad/s).
 TABLE_4_2_MODEL: tuple[tuple[float, float], ...] = ((15.7, 2.407), (9.8, 0.767), (6.9, 0.0),
@@ -168,6 +168,15 @@ def default_finger_params(calibration: str = "model") -> FingerParams:
     return FingerParams(k_base_nm_per_rad=k_base, base_preload_rad=fit.preload_rad,
                         r_base_m=r_base, motor_coulomb_units=coulomb,
                         damping_table=_damping_table(coulomb))
+
+
+def with_tactile_gain(params: FingerParams, gain: float) -> FingerParams:
+    """``params`` with tactile cells ``gain`` times as sensitive as their nominal calibration
+    (``hand.sim.tactile_gain``: a mis-calibrated sensor; only the pressure readings change,
+    never the physics); the same object at gain 1."""
+    if gain == 1.0:
+        return params
+    return replace(params, pressure_per_n=params.pressure_per_n * gain)
 
 
 def motor_damping_units(params: FingerParams, effort_units: float) -> float:

@@ -13,7 +13,8 @@ shaft goals; force mode sends ``finger_force_units`` to the motors; velocity mod
 move at the driver's maximum speed (3.5 rad/s joint).  Readings follow the stock driver:
 ``motor_angle_rad`` is the joint-side motor angle (shaft / 1.42), ``distal_rad`` the driver's
 estimate ``max(0, joint angle - proximal)``, ``load_units`` the signed present load,
-``pressure``/``contact`` the 9 tactile sensors (contact above 20 raw).  With
+``pressure``/``contact`` the 9 tactile sensors (contact above 20 raw; ``hand.sim.tactile_gain``
+scales the cells' true gain, a mis-calibrated sensor).  With
 ``hand.sim.noise`` the encoders are quantised and loads and pressures noisy (seeded).
 """
 
@@ -34,7 +35,7 @@ from sim.hand import (
     hand_outputs,
     initial_hand_state,
 )
-from sim.params import JOINT_RATIO
+from sim.params import JOINT_RATIO, with_tactile_gain
 from teleop.config.hand import HandConfig
 from teleop.devices.base import HandReading
 from teleop.effects import EffectSet
@@ -56,6 +57,7 @@ class SimHand:
             effects = effects or found
         if cfg.sim.command_delay:
             fp = replace(fp, command_delay_s=0.09)
+        fp = with_tactile_gain(fp, cfg.sim.tactile_gain)
         self.cfg = cfg
         self.params = default_hand_params(fp)
         self.obj = contact_object_from_config(cfg.sim.object)

@@ -31,6 +31,9 @@ class FingerState:
     pads: tuple[float, float, float, float]
     # (command in force, last command received, pending delayed commands (due time, command))
     command: tuple[MotorCommand, MotorCommand | None, tuple[tuple[float, MotorCommand], ...]]
+    # permanent dent of a yielding object under the (proximal, distal) pad, m (sim.crush):
+    # the dent so far, updated from the depth at the start of every step; never shrinks
+    crush_m: tuple[float, float] = (0.0, 0.0)
 
     @property
     def spool_gap_rad(self) -> float:

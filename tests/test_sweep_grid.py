@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -54,6 +55,29 @@ def test_object_presets_round_trip() -> None:
     assert object_name(TeleopConfig()) == "stiff-cylinder"  # the config default
     with pytest.raises(UserInputError):
         with_object(TeleopConfig(), "sponge")
+    crushable = with_object(TeleopConfig(), "crushable-cylinder").hand.sim.object
+    assert crushable.yield_force_n == 5.0 and crushable.stiffness_n_per_m == 2000.0
+    stiff = with_object(with_object(TeleopConfig(), "crushable-cylinder"), "stiff-cylinder")
+    assert stiff.hand.sim.object.yield_force_n == 0.0  # a preset sets (and clears) the yield
+    o = replace(TeleopConfig().hand.sim.object, yield_force_n=3.0)
+    cfg = replace(TeleopConfig(), hand=replace(TeleopConfig().hand,
+                                               sim=replace(TeleopConfig().hand.sim, object=o)))
+    assert object_name(cfg) == "cylinder k=2000 c=5 yield=3"
+
+
+def test_the_relaxed_operators_first_grasp_dents_the_crushable_cylinder_a_few_mm() -> None:
+    """The preset's calibration (sweep_objects): the default loop's first grasp (its first 2 s:
+    closed and held, the dent as deep as the whole 4.5 s grasp makes it: 4.1 mm), the physics
+    engine's dents; the object keeps the plastic work (the audit's net)."""
+    from services.lockstep import run_lockstep
+    from sim.sim_hand import SimHand
+
+    cfg = with_object(TeleopConfig(), "crushable-cylinder")
+    hand = SimHand(cfg.hand)
+    r = run_lockstep(cfg, 2.0, seed=1, hand=hand)
+    dent = max(max(f.crush_m) for f in hand.state.fingers)
+    assert 0.002 < dent < 0.008
+    assert r.audit_environment_delivered_j[-1] - r.audit_environment_taken_j[-1] > 0.03
 
 
 def test_grid_points_cover_every_axis_with_distinct_seeds() -> None:

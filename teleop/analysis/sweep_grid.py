@@ -52,7 +52,8 @@ class GridSpec:
                 * len(self.losses) * len(self.jitters))
 
 
-#: the issue's grid: 3 x 4 x 4 x 2 x 2 = 192 runs per controller, 5 s each (1 s delay: 11 s)
+#: the issue's grid: 3 x 5 x 4 x 2 x 2 = 240 runs per controller (192 before the crushable
+#: cylinder), 5 s each (1 s delay: 11 s)
 FULL = GridSpec(OPERATORS, tuple(OBJECTS), (0.0, 0.05, 0.2, 1.0), (0.0, 0.2),
                 (("none", 0.0), ("pareto", 0.01)), 5.0)
 #: CI's grid: the corners (8 runs per controller)

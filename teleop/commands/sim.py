@@ -67,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from sim.contact import contact_object_from_config
     from sim.experiments import ExperimentSpec, check_spec, run_experiment
     from sim.finger import default_finger_params, weight_equilibrium
+    from sim.params import with_tactile_gain
     from teleop.commands.common import write_json
     from teleop.effects import parse_effects
     from teleop.recording import write_recording
@@ -91,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
         effects = found
     if args.driver_delay or cfg.hand.sim.command_delay:
         params = replace(params, command_delay_s=0.09)
+    params = with_tactile_gain(params, cfg.hand.sim.tactile_gain)
     obj = contact_object_from_config(cfg.hand.sim.object)
     if spec.name == "grasp" and obj.kind == "none":
         raise ExperimentError("grasp needs an object: set hand.sim.object.kind to cylinder "

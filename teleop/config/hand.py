@@ -26,6 +26,14 @@ class ObjectConfig:
                                 "push a finger through the object)", unit="m", lo=1e-4, hi=1.0)
     core_stiffness_n_per_m: float = param(2e5, "stiffness added once the core is reached",
                                           unit="N/m", lo=0.0, hi=1e8)
+    yield_force_n: float = param(0.0, "the skin crushes plastically: the skin's spring force "
+                                 "on a pad (per engaged fraction) is held at this level by a "
+                                 "permanent dent that grows, and the work into the dent is "
+                                 "never returned (the core does not yield); 0: an elastic "
+                                 "object that never yields", unit="N", lo=0.0, hi=1e4)
+    yield_hardening_n_per_m: float = param(0.0, "the yield level's rise per metre of dent "
+                                           "(0: perfectly plastic)", unit="N/m", lo=0.0,
+                                           hi=1e7)
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,6 +54,10 @@ class SimHandConfig:
     model: str = param("", "finger model file written by teleop diagnose --write-params "
                        "(TOML: refined finger parameters and effects); empty: the calibrated "
                        "finger")
+    tactile_gain: float = param(1.0, "true gain of the simulated tactile cells over their "
+                                "nominal calibration (a mis-calibrated sensor: 0.333 reads 3x "
+                                "low); multiplies the pressure readings only, not the contact "
+                                "physics", lo=0.0, hi=100.0)
     object: ObjectConfig = section(ObjectConfig, "the grasped object")
 
 

@@ -59,13 +59,16 @@ def test_every_experiment_matches_the_reference_for_10_s(name: str,
     assert compiled.summary == pytest.approx(python.summary)
 
 
-def _hand_grasp(name: str, obj: ContactObject, steps: int) -> tuple[object, list[list[float]]]:
+def _hand_grasp(name: str, obj: ContactObject, steps: int,
+                release: bool = False) -> tuple[object, list[list[float]]]:
+    """Close the hand into ``obj`` (with ``release``: open it again halfway)."""
     hp = default_hand_params()
     st = initial_hand_state(hp)
     audit: tuple[list[float], list[float]] = ([0.0] * 3, [0.0] * 3)
     run = engine(name).run_hand
-    for k in range(steps // 25):  # 40 Hz commands, as the hand service's reads
-        sp = min(1.6, 0.05 * k)
+    n = steps // 25
+    for k in range(n):  # 40 Hz commands, as the hand service's reads
+        sp = min(1.6, 0.05 * k) if not release or k < n // 2 else 0.0
         ms = tuple(MotorCommand("position", JOINT_RATIO * sp * f) for f in (1.0, 0.9, 0.8))
         st = run(st, HandMotorCommand((ms[0], ms[1], ms[2]), 0.3), hp, obj, EffectSet(), 1e-3,
                  25, audit=audit)
