@@ -18,7 +18,7 @@ import math
 import multiprocessing
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -244,14 +244,16 @@ class _Pool:
             return out
         # the longest runs first (simulated seconds), so no worker is left with a long run at
         # the end; each result still goes to its own place, the order of ``jobs``
+        # (``done`` hears of each run as it finishes: waiting in job order would hold the
+        # progress bar back until the first job, which may be one of the last to start)
         order = sorted(range(len(jobs)), key=lambda i: -_job_seconds(jobs[i]))
-        submitted = {i: self._ex.submit(fn, *jobs[i]) for i in order}
-        futures = [submitted[i] for i in range(len(jobs))]
-        results: list[SweepRun] = []
-        for fut in futures:
-            results.append(fut.result())
-            done(results[-1])
-        return results
+        index = {self._ex.submit(fn, *jobs[i]): i for i in order}
+        results: list[SweepRun | None] = [None] * len(jobs)
+        for fut in as_completed(index):
+            run = fut.result()
+            results[index[fut]] = run
+            done(run)
+        return [r for r in results if r is not None]
 
     def close(self) -> None:
         if self._ex is not None:
