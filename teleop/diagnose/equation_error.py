@@ -9,6 +9,7 @@ saturation, Stribeck velocity) are handled by a one-dimensional grid around the 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,6 +78,27 @@ def ee_signals(t: Array, y: Array, u: Array | None, cutoff_hz: float | None = No
     uf = None if u is None else np.asarray(u, float)
     step = max(1, int(fs / (4 * fc)))
     return EESignals(t, x, v, a, uf, fs, fc, step)
+
+
+def contiguous(ts: Sequence[Array]) -> Array:
+    """Segment time bases laid end to end (the first keeps its own times)."""
+    if len(ts) == 1:
+        return ts[0]
+    out, off = [], float(ts[0][0])
+    for t in ts:
+        out.append(t - t[0] + off)
+        off = float(out[-1][-1] + (t[1] - t[0]))
+    return np.concatenate(out)
+
+
+def concat_ee(sigs: Sequence[EESignals]) -> EESignals:
+    """Several recordings' filtered signals laid end to end."""
+    if len(sigs) == 1:
+        return sigs[0]
+    u = None if sigs[0].u is None else np.concatenate([s.u for s in sigs])  # type: ignore[misc]
+    return EESignals(contiguous([s.t for s in sigs]), np.concatenate([s.x for s in sigs]),
+                     np.concatenate([s.v for s in sigs]), np.concatenate([s.a for s in sigs]),
+                     u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
 
 
 def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
