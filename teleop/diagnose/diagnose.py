@@ -186,8 +186,11 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
     else:
+        def noise_of(f: EEFit) -> float:
+            return noise_level(ee_noise(raw, sig, nominal, f, fixed_inertia, ~edge), ~edge)
+
         nom_e, fin_e, chosen, ranking, proposed, amb = select_ee_with_library(
-            sig, nominal, opts, names, fixed_inertia, scales)
+            sig, nominal, opts, names, fixed_inertia, scales, noise_of)
         ee_nom, ee_fin = nom_e.residual, fin_e.residual
         tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
         tgt_scale = float(np.linalg.norm(tgt - np.mean(tgt)))

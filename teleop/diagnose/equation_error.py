@@ -8,6 +8,7 @@ saturation, Stribeck velocity) are handled by a one-dimensional grid around the 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -63,9 +64,15 @@ class EEFit:
         return self.n * math.log(max(self.rss, 1e-300) / self.n) + self.n_params * math.log(self.n)
 
 
+@functools.lru_cache(maxsize=64)
+def _sos(wn: float) -> Array:
+    """The filter's second-order sections (designing them costs more than filtering)."""
+    return sps.butter(2, wn, output="sos")
+
+
 def _filt(sig: Array, fs: float, fc: float) -> Array:
-    sos = sps.butter(2, min(fc / (fs / 2), 0.9), output="sos")
-    return sps.sosfiltfilt(sos, sig)
+    """Zero-phase low-pass along the first axis (a 2-D array: every column)."""
+    return sps.sosfiltfilt(_sos(min(fc / (fs / 2), 0.9)), sig, axis=0)
 
 
 def ee_signals(t: Array, y: Array, u: Array | None, cutoff_hz: float | None = None) -> EESignals:
@@ -194,8 +201,7 @@ def ee_fit(sig: EESignals, nominal: AxisNominal, effects: dict[str, float] | Non
     effects = effects or {}
     names, cols, bnds, target = _columns(sig, nominal, effects, fixed_inertia, terms)
     fs, fc = sig.fs_hz, sig.cutoff_hz
-    phi = np.column_stack([_filt(c, fs, fc) for c in cols]) if cols else np.zeros((len(target),
-                                                                                     0))
+    phi = _filt(np.column_stack(cols), fs, fc) if cols else np.zeros((len(target), 0))
     tgt = _filt(target, fs, fc)
     rows = ee_rows(sig)
     A, b = phi[rows], tgt[rows]
