@@ -79,7 +79,7 @@ class EEPath:
         return f.fit.n_params - base.fit.n_params
 
     def at_floor(self, current: EEState, n_chosen: int) -> bool:
-        return False  # the effort residual has no noise floor of its own: the rule decides
+        return False  # the rule decides (the effort noise floor only gates the library terms)
 
     def holdout(self, current: EEState, name: str, f: EEState) -> tuple[float, bool]:
         return _ee_holdout(self.sig, self.nominal, current, f, name,
