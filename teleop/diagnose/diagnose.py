@@ -19,9 +19,11 @@ import numpy as np
 from teleop.diagnose import candidates as cand
 from teleop.diagnose import library
 from teleop.diagnose.axis_model import Array
+from teleop.diagnose.ee_noise import ee_noise, excess_windows, noise_level
 from teleop.diagnose.equation_error import (
     EEFit,
-    EESignals,
+    concat_ee,
+    contiguous,
     ee_apply,
     ee_fit,
     ee_signals,
@@ -109,26 +111,6 @@ def _decimate(t: Array, u: Array | None, y: Array, rate_hz: float) -> Segment:
     return Segment(td, ud, yd)
 
 
-def _contiguous(ts: Sequence[Array]) -> Array:
-    """Segment time bases laid end to end (the first keeps its own times)."""
-    if len(ts) == 1:
-        return ts[0]
-    out, off = [], float(ts[0][0])
-    for t in ts:
-        out.append(t - t[0] + off)
-        off = float(out[-1][-1] + (t[1] - t[0]))
-    return np.concatenate(out)
-
-
-def _concat_ee(sigs: Sequence[EESignals]) -> EESignals:
-    if len(sigs) == 1:
-        return sigs[0]
-    u = None if sigs[0].u is None else np.concatenate([s.u for s in sigs])  # type: ignore[misc]
-    return EESignals(_contiguous([s.t for s in sigs]), np.concatenate([s.x for s in sigs]),
-                     np.concatenate([s.v for s in sigs]), np.concatenate([s.a for s in sigs]),
-                     u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
-
-
 def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
              validate: Recording | None = None) -> Diagnosis:
     """Diagnose what the nominal axis model misses in ``recordings``."""
@@ -139,7 +121,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     nominal = opts.nominal
     fixed_inertia = nominal.value("inertia") or 1.0
     sigs = [ee_signals(t, y, u) for t, u, y in raw]
-    sig = _concat_ee(sigs)
+    sig = concat_ee(sigs)
     # scales for start values and bounds
     vel = float(np.sqrt(np.mean(sig.v ** 2))) or 1.0
     umax = float(max(np.max(np.abs(u)) for _, u, _ in raw)) if has_input else 0.0  # type: ignore
@@ -176,7 +158,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     else:
         reason = "chosen by --analysis"
 
-    t_all = _contiguous([s.t for s in segs])
+    t_all = contiguous([s.t for s in segs])
     edge = np.zeros(len(sig.t), bool)  # filter transients at the ends of every segment
     m = int(3 * sig.fs_hz / sig.cutoff_hz)
     start_i = 0
@@ -204,8 +186,11 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
     else:
+        def noise_of(f: EEFit) -> float:
+            return noise_level(ee_noise(raw, sig, nominal, f, fixed_inertia, ~edge), ~edge)
+
         nom_e, fin_e, chosen, ranking, proposed, amb = select_ee_with_library(
-            sig, nominal, opts, names, fixed_inertia, scales)
+            sig, nominal, opts, names, fixed_inertia, scales, noise_of)
         ee_nom, ee_fin = nom_e.residual, fin_e.residual
         tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
         tgt_scale = float(np.linalg.norm(tgt - np.mean(tgt)))
@@ -228,9 +213,22 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         score = moving_rms(r_before, int(0.2 / dt_fit)) / noise
         conds_fit = {k: np.interp(t_all, sig.t, m.astype(float)) > 0.5 for k, m in conds.items()}
         windows = locate_windows(t_all, score, conds_fit)
-    yy = data.y if mode == "output-error" else np.concatenate([y for _, _, y in raw])
-    stats_b = analyse_residual(r_before, yy, signals)
-    stats_a = analyse_residual(r_after, yy, signals)
+    if mode == "output-error":
+        # a position residual: the measurement noise of the position
+        noise_y = noise_std(data.y)
+        stats_b = analyse_residual(r_before, noise_y, signals)
+        stats_a = analyse_residual(r_after, noise_y, signals)
+        conds_t = {k: np.interp(t_all, sig.t, m.astype(float)) > 0.5 for k, m in conds.items()}
+        flat = np.full(len(t_all), noise_y)
+        where = excess_windows(t_all, data.y, r_after, flat, np.ones(len(t_all), bool), conds_t)
+    else:
+        # an effort residual: the position noise carried through filter, derivatives and model
+        ok = ~edge
+        fl_b, fl_a = (ee_noise(raw, sig, nominal, f, fixed_inertia, ok) for f in (nom_e, fin_e))
+        sig_ok = {k: v[ok] for k, v in signals.items()}
+        stats_b = analyse_residual(r_before[ok], noise_level(fl_b, ok), sig_ok)
+        stats_a = analyse_residual(r_after[ok], noise_level(fl_a, ok), sig_ok)
+        where = excess_windows(sig.t, sig.x, r_after, fl_a, ok, conds)
     val = None
     if validate is not None:
         val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
@@ -239,7 +237,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
              library.units(opts.output_col, "position units"))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
                      windows, stats_b, stats_a, before, after, val, traces, proposed, units,
-                     tuple(amb))
+                     tuple(amb), where)
 
 
 def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,

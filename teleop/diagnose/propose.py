@@ -33,19 +33,25 @@ from teleop.diagnose.select import OEPath, select_oe
 
 STLSQ_SHARE = 0.1
 DELAYS_S = (0.005, 0.01, 0.02, 0.05, 0.1)
+CHUNK = 32   # groups filtered per call (memory: 64 columns x the recording)
 
 
 def _cols(sig: EESignals, group: tuple[Term, ...]) -> Array:
-    return np.column_stack([_filt(column(t, sig.t, sig.x, sig.v, sig.u), sig.fs_hz,
-                                  sig.cutoff_hz) for t in group])
+    return _filt(np.column_stack([column(t, sig.t, sig.x, sig.v, sig.u) for t in group]),
+                 sig.fs_hz, sig.cutoff_hz)
 
 
 def _best(sig: EESignals, e: Array, groups: list[tuple[Term, ...]]) -> tuple[Term, ...]:
     """The group of a scanned family that explains most of ``e``."""
     rows = ee_rows(sig)
     best, best_g = math.inf, groups[0]
-    for g in groups:
-        a = _cols(sig, g)[rows]
+    for i, g in enumerate(groups):
+        if i % CHUNK == 0:   # filter CHUNK groups' columns in one call
+            chunk = groups[i: i + CHUNK]
+            filtered = _cols(sig, tuple(t for h in chunk for t in h))[rows]
+            j = 0
+        a = filtered[:, j: j + len(g)]
+        j += len(g)
         c, *_ = np.linalg.lstsq(a, e[rows], rcond=None)
         rss = float(np.sum((e[rows] - a @ c) ** 2))
         if rss < best:

@@ -2,26 +2,38 @@
 
 The same typed library and sparse regression as the output-error path
 (:func:`teleop.diagnose.propose.ranked_terms`), on the effort residual the equation error
-already is: after the catalog effects, the residual ``sum(coef col) - target`` is the effort
-the model lacks (``J a = ... + c phi``).  Each kept term is added to the inverse-dynamics
-regression (its wavenumber or delay as scanned) and accepted only through the one engine
-(:func:`teleop.diagnose.engine.accept_first`: score on the regression rows, a scanned constant
-counted as a parameter, and held-out gain on the last 30 % of the recording with both models
-fitted on the rest).  With terms accepted, the catalog is selected again on top of nominal +
-terms, so a catalog effect that only stood in for the out-of-catalog physics is not named.
+already is: the residual ``sum(coef col) - target`` is the effort the model lacks
+(``J a = ... + c phi``).  Library terms and catalog effects compete **in the same engine call
+by the same rule** (:func:`teleop.diagnose.engine.forward` through
+:func:`teleop.diagnose.select_ee.catalog_ee`: score on the regression rows, a
+scanned constant counted as a parameter, held-out gain on the last 30 % of the recording with
+both models fitted on the rest): at every step until a catalog effect is accepted, the library
+groups STLSQ keeps for the current residual are candidates beside the catalog effects, whenever
+that residual stays above the noise (``noise_factor`` x the effort residual's own floor,
+:mod:`teleop.diagnose.ee_noise`).  Once a catalog effect is named, the library is not offered
+again.
 
-Unlike the output-error path, terms are proposed only when no catalog effect is accepted: the
-equation error has no held-out *simulation* to weigh a term against a catalog effect of the
-same shape, and no known noise floor to say the residual is physics (a propagated encoder-noise
-floor put a cogging residual at 1.7x and a Coulomb-law mismatch at 7.7x: no threshold separates
-them).
+Why this shape (measured, docs/diagnose-results.md): with terms proposed only when no catalog
+effect was accepted, 4 of 6 cogging drives named a 0.01-0.04 s ``dead_time`` (score 12-38)
+that stood in for the cogging unchallenged; the periodic term scores far higher on them and now
+wins the first step, and the dead time is then refused on top of it.  With terms offered at
+every step, a Coulomb drive got ``v^3`` and ``v|v|`` next to ``coulomb_friction`` (its level
+pulled from 2.9 to 2.5): the equation error's filtered sign law leaves a structured residual
+near reversals that those terms fit; the Coulomb effect scores far higher than any term at the
+first step, so here the library stops once it is named, and the unexplained-residual warning
+says what is left.
 """
 
 from __future__ import annotations
 
-from teleop.diagnose import engine
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
 from teleop.diagnose.candidates import Scales
-from teleop.diagnose.equation_error import EEFit, EESignals, ee_fit
+from teleop.diagnose.equation_error import EE_EFFECTS, EEFit, EESignals, ee_fit, ee_rows
 from teleop.diagnose.fit import NUMERIC_FAILURES
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.propose import ranked_terms
@@ -30,50 +42,54 @@ from teleop.diagnose.select import _ee_grids
 from teleop.diagnose.select_ee import EEPath, EEState, catalog_ee
 
 
-def propose_ee(path: EEPath, nom: EEState, final: EEState, opts: DiagnoseOptions
-               ) -> tuple[EEState, tuple[ProposedTerm, ...]]:
-    """Library terms for the effort residual of ``final``, each judged by the engine against
-    ``nom`` with the terms accepted before it; that model and the terms."""
-    rule = engine.Rule(criterion=opts.criterion)
-    current = nom
-    accepted: list[ProposedTerm] = []
-    for group, _, _ in ranked_terms(path.sig, final.fit.residual):
-        terms = current.terms + group
-        try:
-            f = EEState(ee_fit(path.sig, path.nominal, current.base, path.fixed_inertia, terms),
-                        current.base, terms)
-        except NUMERIC_FAILURES:
-            continue
-        step, _ = engine.accept_first(
-            path, current, [(engine.score(path, current, f, rule), group[0].key, f)], rule)
-        if step is not None:
-            accepted.append(ProposedTerm(tuple(t.key for t in group),
-                                         tuple(f.fit.get(t.key) for t in group),
-                                         step.verdict.score, step.verdict.holdout_gain))
-            current = f
-    return current, tuple(accepted)
+@dataclass(frozen=True)
+class EELibraryPath(EEPath):
+    """The equation-error path whose candidates include library terms while no catalog effect
+    is named and the residual stays above the noise (``noise_of``: a fit's noise level)."""
+
+    noise_of: Callable[[EEFit], float] | None = None
+    noise_factor: float = 1.5
+
+    def above_noise(self, f: EEFit) -> bool:
+        if self.noise_of is None:
+            return True
+        r = f.residual[ee_rows(self.sig)]
+        return math.sqrt(float(np.mean(r ** 2))) >= self.noise_factor * self.noise_of(f)
+
+    def fit_candidates(self, current: EEState, names: tuple[str, ...]
+                       ) -> list[tuple[str, EEState]]:
+        out = super().fit_candidates(current, names)
+        if current.base or not self.above_noise(current.fit):
+            return out
+        for group, _, _ in ranked_terms(self.sig, current.fit.residual):
+            terms = current.terms + group
+            try:
+                f = ee_fit(self.sig, self.nominal, current.base, self.fixed_inertia, terms)
+            except NUMERIC_FAILURES:
+                continue
+            if math.isfinite(f.bic):
+                out.append((group[0].key, EEState(f, current.base, terms)))
+        return out
 
 
 def select_ee_with_library(sig: EESignals, nominal: AxisNominal, opts: DiagnoseOptions,
-                           names: tuple[str, ...], fixed_inertia: float, scales: Scales
+                           names: tuple[str, ...], fixed_inertia: float, scales: Scales,
+                           noise_of: Callable[[EEFit], float] | None = None
                            ) -> tuple[EEFit, EEFit, list[EffectResult], list[tuple[str, float]],
                                       tuple[ProposedTerm, ...], tuple[str, ...]]:
-    """Catalog selection on the equation error; then library terms; then, with terms, the
-    catalog again on top of them.  Returns the nominal and final fits, the effects, the first
-    ranking, the proposed terms and the ambiguity notes."""
-    path = EEPath(sig, nominal, fixed_inertia, _ee_grids(scales))
+    """Forward selection over catalog effects and library terms (see the module docstring).
+    Returns the nominal and final fits, the effects, the first step's ranking of catalog
+    effects, the proposed terms (coefficients as in the final fit) and the ambiguity notes."""
+    path = EELibraryPath(sig, nominal, fixed_inertia, _ee_grids(scales), noise_of,
+                         opts.noise_factor)
     nom = EEState(ee_fit(sig, nominal, {}, fixed_inertia), {})
-    final, chosen, ranking, amb = catalog_ee(path, nom, opts, names)
-    if chosen:
-        # the effort residual has no simulation to check a term against catalog effects, nor a
-        # known noise floor: terms only where the catalog explains nothing (measured: with a
-        # Coulomb law sharper than the model's, v|v| and v^3 were kept next to the Coulomb
-        # level and pulled it from 3.0 to 2.5)
-        return nom.fit, final.fit, chosen, ranking, (), amb
-    with_terms, proposed = propose_ee(path, nom, final, opts)
-    if not proposed:
-        return nom.fit, final.fit, chosen, ranking, (), amb
-    final, chosen, _, amb = catalog_ee(path, with_terms, opts, names)
-    terms = tuple(ProposedTerm(p.keys, tuple(final.fit.get(k) for k in p.keys), p.score,
-                               p.holdout_gain) for p in proposed)
-    return nom.fit, final.fit, chosen, ranking, terms, amb
+    sel, chosen, ranking = catalog_ee(path, nom, opts, names)
+    final = sel.final.fit
+    terms, prev = [], nom
+    for st in sel.steps:
+        if st.name not in EE_EFFECTS:
+            keys = tuple(t.key for t in st.fit.terms[len(prev.terms):])
+            terms.append(ProposedTerm(keys, tuple(final.get(k) for k in keys),
+                                      st.verdict.score, st.verdict.holdout_gain))
+        prev = st.fit
+    return nom.fit, final, chosen, ranking, tuple(terms), sel.ambiguous

@@ -41,6 +41,8 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
         "selection": "penalised likelihood (effective sample size) + held-out gain",
         "unexplained": _warning(d),
         "ambiguous": list(d.ambiguous),
+        "unexplained_where": [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why,
+                               "excess": w.excess} for w in d.unexplained_where],
     }
     out["proposed"] = [{"term": ",".join(p.keys), "keys": list(p.keys),
                         "coefs": list(p.coefs), "score": p.score,
@@ -61,7 +63,13 @@ def _warning(d: Diagnosis) -> str | None:
     already says that no catalog effect explains the residual)."""
     if not d.effects:
         return None
-    return unexplained(d.residual_after.rms, d.residual_after.noise_std)
+    w = unexplained(d.residual_after.rms, d.residual_after.noise_std)
+    if w is None or not d.unexplained_where:
+        return w
+    top = sorted(d.unexplained_where, key=lambda x: -x.excess)[:3]
+    return w + "; where (largest first): " + "; ".join(
+        f"{x.t_start_s:.3g}-{x.t_end_s:.3g} s (x{x.excess:.1f}, {x.why})" for x in top) + (
+        f"; {len(d.unexplained_where) - 3} more" if len(d.unexplained_where) > 3 else "")
 
 
 def to_text(d: Diagnosis, source: str = "") -> str:

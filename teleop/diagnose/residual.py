@@ -15,7 +15,9 @@ from teleop.diagnose.axis_model import Array
 class ResidualStats:
     """Summary of a fit residual.
 
-    ``noise_std`` is the measurement noise estimated from the data alone (local cubic fits);
+    ``noise_std`` is the noise of the residual's own quantity (a position residual: the
+    measurement noise from local cubic fits; an effort residual: that noise carried through
+    the filter, the derivatives and the fitted model, :mod:`teleop.diagnose.ee_noise`);
     ``whiteness`` is the fraction of autocorrelation lags 1..50 inside the 95 % band of white
     noise (near 0.95 for a white residual); ``corr`` holds correlation coefficients of the residual
     with named signals (input, position, velocity, sign of velocity).
@@ -62,11 +64,12 @@ def _corr(a: Array, b: Array) -> float:
     return float(np.mean((a - a.mean()) * (b - b.mean())) / (sa * sb))
 
 
-def analyse_residual(r: Array, y: Array, signals: dict[str, Array]) -> ResidualStats:
-    """Statistics of residual ``r`` of measurement ``y``; ``signals`` are correlated against."""
+def analyse_residual(r: Array, noise: float, signals: dict[str, Array]) -> ResidualStats:
+    """Statistics of residual ``r`` whose noise level (in ``r``'s own units) is ``noise``;
+    ``signals`` are correlated against."""
     ac = autocorr(r, 50)
     band = 1.96 / math.sqrt(max(len(r), 1))
     white = float(np.mean(np.abs(ac[1:]) < band)) if len(ac) > 1 else 1.0
     corr = tuple((k, _corr(r, v)) for k, v in signals.items())
-    return ResidualStats(float(np.sqrt(np.mean(r ** 2))), noise_std(y),
+    return ResidualStats(float(np.sqrt(np.mean(r ** 2))), noise,
                          float(ac[1]) if len(ac) > 1 else 0.0, white, corr)

@@ -95,6 +95,7 @@ class Diagnosis:
     proposed: tuple[ProposedTerm, ...] = ()   # library terms outside the catalog
     units: tuple[str, str] = ("effort units", "position units")
     ambiguous: tuple[str, ...] = ()           # pairs of effects the data cannot separate
+    unexplained_where: tuple[Window, ...] = ()  # where the final residual stays over 3x noise
 
 
 def nrmse(y: Array, y_hat: Array) -> float:

@@ -79,7 +79,7 @@ class EEPath:
         return f.fit.n_params - base.fit.n_params
 
     def at_floor(self, current: EEState, n_chosen: int) -> bool:
-        return False  # the effort residual has no noise floor of its own: the rule decides
+        return False  # the rule decides (the effort noise floor only gates the library terms)
 
     def holdout(self, current: EEState, name: str, f: EEState) -> tuple[float, bool]:
         return _ee_holdout(self.sig, self.nominal, current, f, name,
@@ -104,7 +104,7 @@ class EEPath:
         return out
 
 
-def _effect_result(name: str, f: EEFit, score: float, gain: float) -> EffectResult:
+def effect_result(name: str, f: EEFit, score: float, gain: float) -> EffectResult:
     extra = dict(f.extra)
     if name in extra:
         val = extra[name] if name != "stiction" else f.get("stiction")
@@ -122,12 +122,12 @@ def _effect_result(name: str, f: EEFit, score: float, gain: float) -> EffectResu
 
 
 def catalog_ee(path: EEPath, start: EEState, opts: DiagnoseOptions, names: tuple[str, ...]
-               ) -> tuple[EEState, list[EffectResult], list[tuple[str, float]], tuple[str, ...]]:
-    """Forward selection of catalog effects by the engine on the equation error, from
-    ``start``: the final state, the effects, the first step's ranking (effect, score) and the
-    ambiguity notes."""
+               ) -> tuple[engine.Selection[EEState], list[EffectResult], list[tuple[str, float]]]:
+    """Forward selection by the engine on the equation error, from ``start``: the selection
+    (every step, library terms included when ``path`` offers them), the catalog effects and
+    the first step's ranking of catalog effects (effect, score)."""
     sel = engine.forward(path, start, names, opts.max_effects,
                          engine.Rule(criterion=opts.criterion))
-    chosen = [_effect_result(st.name, st.fit.fit, st.verdict.score, st.verdict.holdout_gain)
-              for st in sel.steps]
-    return sel.final, chosen, list(sel.ranking), sel.ambiguous
+    chosen = [effect_result(st.name, st.fit.fit, st.verdict.score, st.verdict.holdout_gain)
+              for st in sel.steps if st.name in EE_EFFECTS]
+    return sel, chosen, [(n, sc) for n, sc in sel.ranking if n in EE_EFFECTS]

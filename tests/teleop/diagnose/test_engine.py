@@ -117,8 +117,8 @@ def test_every_model_path_selects_through_the_engine_and_nothing_else_judges() -
     diag = ROOT / "teleop" / "diagnose"
     for mod in ("select.py", "select_ee.py", "select_sim.py", "generic.py"):
         assert "engine.forward" in _calls(diag / mod), mod
-    for mod in ("propose.py", "propose_ee.py"):
-        assert "engine.accept_first" in _calls(diag / mod), mod
+    assert "engine.accept_first" in _calls(diag / "propose.py")
+    assert "catalog_ee" in _calls(diag / "propose_ee.py")   # terms beside the catalog effects
     judges = [p.relative_to(ROOT) for p in [*diag.glob("*.py"), *(ROOT / "sim").glob("*.py")]
               if {"judge", "crit.judge", "criterion.judge"} & _calls(p)]
     assert judges == [Path("teleop/diagnose/engine.py")], judges

@@ -12,6 +12,7 @@ import pytest
 
 from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
 from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.report import to_json
 from teleop.recording import Recording
 
 RATE_HZ = 1000
@@ -22,7 +23,9 @@ PERIOD_RAD = 0.25
 COG_NM = 1.5
 
 
-def drive(seed: int, cog_nm: float, duration_s: float = 8.0) -> Recording:
+def drive(seed: int, cog_nm: float, duration_s: float = 8.0, asym_nm: float = 0.0
+          ) -> Recording:
+    """``asym_nm``: Coulomb friction that acts only while moving in the positive direction."""
     rng = np.random.default_rng(seed)
     n = int(duration_s * RATE_HZ)
     t = np.arange(n) / RATE_HZ
@@ -33,7 +36,7 @@ def drive(seed: int, cog_nm: float, duration_s: float = 8.0) -> Recording:
     w = 2 * math.pi / PERIOD_RAD
 
     def acc(x: float, v: float, u: float) -> float:
-        fr = C * v + FC * math.tanh(v / 1e-3)
+        fr = C * v + FC * math.tanh(v / 1e-3) + asym_nm * (0.5 + 0.5 * math.tanh(v / 1e-3))
         return (u - fr + cog_nm * math.sin(w * x)) / M
 
     x = v = 0.0
@@ -62,14 +65,14 @@ def _diagnose(rec: Recording):  # noqa: ANN202
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [1, 7])
+@pytest.mark.parametrize("seed", [1, 2, 4, 5, 6, 7])
 def test_cogging_in_closed_loop_data_is_proposed_as_a_position_periodic_term(seed: int) -> None:
-    """Where the catalog explains nothing, the term is proposed.  Not on every drive: of seeds
-    1, 2 and 4-7 (measured, docs/diagnose-results.md) 2, 4, 5 and 6 name a dead time of
-    0.01-0.04 s (score 12-38) instead and get no term: the equation-error path proposes terms
-    only when no catalog effect is accepted, so there a catalog effect stands in for the
-    cogging (issue 14 item 4, open)."""
-    d = _diagnose(drive(seed, COG_NM))
+    """The periodic term competes with the catalog effects in the same engine call: on every
+    drive it wins and no catalog effect is named.  (With terms proposed only where no catalog
+    effect was accepted, seeds 2, 4, 5 and 6 named a dead time of 0.01-0.04 s instead, and
+    got no term.)  3 s drives keep the test short: wavenumber 24.97-25.15 (truth 25.13),
+    amplitude 1.29-1.48 N m (truth 1.5) measured."""
+    d = _diagnose(drive(seed, COG_NM, 3.0))
     assert d.analysis == "equation-error"
     waves = {}
     for p in d.proposed:
@@ -80,14 +83,33 @@ def test_cogging_in_closed_loop_data_is_proposed_as_a_position_periodic_term(see
     hits = [(k, cs) for k, cs in waves.items() if abs(k / w - 1) < 0.02]
     assert hits, (d.proposed, d.effects)
     amp = math.hypot(*hits[0][1])
-    assert abs(amp / COG_NM - 1) < 0.25, amp   # measured 14 % and 7 % low (seeds 1, 7)
+    assert abs(amp / COG_NM - 1) < 0.25, amp
     # what the term explains is not also named as a catalog effect
     assert not d.effects, d.effects
     assert d.nrmse_after < 0.5 * d.nrmse_before
+    assert d.residual_after.rms_over_noise < 2.0   # measured 1.00-1.32
+
+
+@pytest.mark.slow
+def test_cogging_left_behind_a_catalog_effect_is_warned_about_with_where() -> None:
+    """A drive with a direction-dependent Coulomb level (2 N m, in the catalog) and the
+    cogging: the catalog effect wins the first step, and once a catalog effect is named the
+    library is not offered again (terms next to a Coulomb law fit the equation error's
+    filtered-sign artefact, see propose_ee), so the cogging stays in the residual; the report
+    must then say so, and where (time and position ranges)."""
+    d = _diagnose(drive(2, COG_NM, 3.0, asym_nm=2.0))
+    assert d.effects and d.effects[0].name == "asymmetric_friction", d.effects
+    assert d.residual_after.rms_over_noise > 3.0, d.residual_after
+    warning = to_json(d)["unexplained"]
+    assert warning and "unexplained residual" in warning, warning
+    assert d.unexplained_where and "where" in warning
+    span = sum(w.t_end_s - w.t_start_s for w in d.unexplained_where)
+    assert span > 1.0, d.unexplained_where     # the cogging acts wherever the drive moves
+    assert all("position" in w.why for w in d.unexplained_where)
 
 
 @pytest.mark.slow
 def test_clean_closed_loop_data_gets_no_library_term() -> None:
-    d = _diagnose(drive(3, 0.0))
+    d = _diagnose(drive(3, 0.0, 3.0))
     assert d.proposed == (), d.proposed
     assert d.effects == (), d.effects
