@@ -19,13 +19,14 @@ off (``yield_stiffness_ratio = 0``) or its charge dropped the bound breaks, as b
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import pytest
-from _ctl_harness import Scenario, audit_failure, initial_tank_j, run_loop
+from _ctl_harness import Scenario, Trace, audit_failure, initial_tank_j, run_loop
 
 from teleop.config.control import ControllerConfig
-from teleop.control.interface import control_params
+from teleop.control.interface import ControlParams, control_params
 from teleop.control.registry import CONTROLLERS
 
 #: the operator closes and holds; the object yields at 0.05 rad/s while pressed
@@ -38,8 +39,14 @@ P = replace(control_params(ControllerConfig(kind="two-layer")), initial_j=0.1, r
 SUITE = CONTROLLERS["two-layer"]
 
 
+@functools.lru_cache(maxsize=64)
+def run(p: ControlParams, sc: Scenario) -> Trace:
+    """One closed-loop run (cached: several tests share the unbroken ones)."""
+    return run_loop(SUITE, p, sc)
+
+
 def audit(sc: Scenario) -> str:
-    return audit_failure(run_loop(SUITE, P, sc), initial_tank_j(SUITE, P))
+    return audit_failure(run(P, sc), initial_tank_j(SUITE, P))
 
 
 @pytest.mark.parametrize("base", [PUSH, SQUEEZE], ids=["yielding", "fixed"])
@@ -66,8 +73,8 @@ def test_an_active_operator_cannot_make_the_loop_generate_energy(base: Scenario,
     operator that pumps energy in (negative damping, random forcing up to 10 N) gets out of
     the loop no more than it put in plus the tanks, at every sample, while the hand still
     works (the fingers do more work on the object than with the relaxed operator)."""
-    calm = run_loop(SUITE, P, base)
-    r = run_loop(SUITE, P, replace(base, **active))
+    calm = run(P, base)
+    r = run(P, replace(base, **active))
     assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
     assert r.op_taken_j[-1] > calm.op_taken_j[-1]
     assert r.env_net_out_j[-1] > 0.0
@@ -85,7 +92,7 @@ def test_a_sensor_reading_low_on_a_yielding_object_raises_the_alarm_and_stays_pa
         gain: float) -> None:
     """The load-bearing assumption broken: the guard flags every finger as yielding and the
     audit holds."""
-    r = run_loop(SUITE, P, replace(PUSH, sensor_gain_factor=gain))
+    r = run(P, replace(PUSH, sensor_gain_factor=gain))
     assert r.yielding_hand == 3
     assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
 
@@ -94,7 +101,7 @@ def test_a_sensor_reading_low_on_a_yielding_object_raises_the_alarm_and_stays_pa
 def test_without_the_guard_a_sensor_reading_low_breaks_the_bound(gain: float) -> None:
     """The mutant kept as a test: the guard off, the audit shows energy generated on the
     yielding object (the tank pays for a fraction of the work the fingers really do)."""
-    r = run_loop(SUITE, GUARD_OFF, replace(PUSH, sensor_gain_factor=gain))
+    r = run(GUARD_OFF, replace(PUSH, sensor_gain_factor=gain))
     assert r.yielding_hand == 0
     assert audit_failure(r, initial_tank_j(SUITE, GUARD_OFF)) != ""
 
@@ -108,12 +115,12 @@ def test_the_guard_without_its_charge_breaks_the_bound(monkeypatch: pytest.Monke
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
 
 
-@pytest.mark.parametrize("gain", [1.0, 1.0 / 3.0, 3.0])
+@pytest.mark.parametrize("gain", [1.0 / 3.0, 3.0])
 def test_no_alarm_on_a_fixed_wall_and_the_same_loop(gain: float) -> None:
     """A wall that does not yield is never flagged, whatever the gain: the guard changes
     nothing there (the same trajectory as with the guard off)."""
     sc = replace(SQUEEZE, sensor_gain_factor=gain)
-    on, off = run_loop(SUITE, P, sc), run_loop(SUITE, GUARD_OFF, sc)
+    on, off = run(P, sc), run(GUARD_OFF, sc)
     assert on.yielding_hand == 0
     assert on.finger == off.finger
 
