@@ -120,7 +120,7 @@ def _worst_unstable_index(run: SweepRun) -> float:
 def format_grid(result: SweepResult) -> str:
     """One line per controller x operator x object: stable/passive shares, felt force ratio,
     force and tracking errors, the worst oscillation."""
-    head = (f"{'controller':<10} {'operator':<8} {'object':<15} {'stable':>7} {'passive':>7} "
+    head = (f"{'controller':<10} {'operator':<8} {'object':<18} {'stable':>7} {'passive':>7} "
             f"{'ledger':>7} {'felt/true':>9} {'force_N':>8} {'track_rad':>9}  worst oscillation")
     lines = [head, "-" * (len(head) + 12)]
     groups: dict[tuple[str, str, str], list[SweepRun]] = {}
@@ -133,7 +133,7 @@ def format_grid(result: SweepResult) -> str:
         osc = (f"{w.name} {w.amplitude:.3g} @ {w.frequency_hz:.2f} Hz "
                f"({worst.point.delay_s * 1000:.0f} ms)" if w else "-")
         lines.append(
-            f"{c:<10} {op:<8} {ob:<15} {_share(runs, 'stable'):>7} "
+            f"{c:<10} {op:<8} {ob:<18} {_share(runs, 'stable'):>7} "
             f"{_share(runs, 'passive'):>7} {_share(runs, 'passive_ledger'):>7} "
             f"{_median([r.metrics.felt_true_force_ratio for r in runs]):9.2f} "
             f"{_median([r.metrics.force_rms_n for r in runs]):8.3f} "
