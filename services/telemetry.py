@@ -80,7 +80,7 @@ class Telemetry:
             self._delay(sample.__class__.__name__, sample.delay_s)
 
         for text in events:
-            level = "WARN" if "watchdog" in text or "fault" in text else "INFO"
+            level = "WARN" if any(w in text for w in ("watchdog", "fault", "yielding")) else "INFO"
             dash.log_event(self.rec, t, self.role, text, level)
         if t < self._next_log_s:
             return
