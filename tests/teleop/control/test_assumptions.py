@@ -115,6 +115,26 @@ def test_the_guard_without_its_charge_breaks_the_bound(monkeypatch: pytest.Monke
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
 
 
+def test_cells_reading_almost_nothing_break_the_bound_before_the_alarm() -> None:
+    """Outside what the guard covers (measured, kept so a change shows): cells reading a
+    millionth of the force on the yielding object.  The force still rises as the push
+    builds up, slower and slower, so the chords fall below the fifth of the stiffest only
+    after ~2.5 s of pushing; by then the object has taken more than the tanks held (by
+    2.6e-5 J with 0.1 J tanks).  The alarm then comes and the fingers stop."""
+    r = run(P, replace(PUSH, sensor_gain_factor=1e-6))
+    assert r.yielding_hand == 3
+    assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+
+
+def test_a_contact_the_cells_do_not_see_is_not_charged() -> None:
+    """The assumption "contact is seen by the cells" broken: readings below the cells'
+    noise floor on the yielding object.  Nothing is charged, nothing is flagged, the bound
+    breaks: no alarm (docs/controllers.md lists it as not covered)."""
+    r = run(P, replace(PUSH, pressure_per_nm=0.05))
+    assert r.yielding_hand == 0
+    assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+
+
 @pytest.mark.parametrize("gain", [1.0 / 3.0, 3.0])
 def test_no_alarm_on_a_fixed_wall_and_the_same_loop(gain: float) -> None:
     """A wall that does not yield is never flagged, whatever the gain: the guard changes
