@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 from collections.abc import Sequence
 from typing import NoReturn
@@ -74,7 +75,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def entry() -> NoReturn:
-    """Console-script entry point."""
+    """Console-script entry point.  Ctrl-C (SIGINT) always stops ``teleop``: a shell script
+    that starts it in the background (``teleop up &``) hands it SIGINT ignored, and Python
+    then never raises KeyboardInterrupt, so ``kill -INT`` (and ``teleop up`` stopping its
+    services the same way) would do nothing."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     sys.exit(main())
 
 

@@ -159,26 +159,40 @@ def test_user_mistakes_are_one_line_and_exit_2(args: tuple[str, ...]) -> None:
 
 @pytest.mark.network
 @pytest.mark.slow
-def test_ctrl_c_stops_everything_within_2_s(tmp_path: Path) -> None:
+@pytest.mark.parametrize("inherited_ignore", [False, True],
+                         ids=["terminal", "started-in-the-background-by-a-script"])
+def test_ctrl_c_stops_everything_within_2_s(tmp_path: Path, inherited_ignore: bool) -> None:
+    """Ctrl-C stops the launcher and its services, also when ``teleop up`` was started by a
+    script in the background (``teleop up &``: SIGINT arrives ignored, and Python would
+    then never raise KeyboardInterrupt)."""
     import signal
+
+    def ignore_sigint() -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     port = free_port()
     proc = subprocess.Popen(
         [sys.executable, "-m", "teleop.cli", "up", "--dashboard", "off", "--record",
          str(tmp_path), "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}",
          "--set", f"session.name=ctrlc{port}"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert proc.stdout is not None
-    lines = []
-    for line in proc.stdout:
-        lines.append(line)
-        if "running" in line:
-            break
-    time.sleep(1.0)
-    t0 = time.monotonic()
-    proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=30)
-    elapsed = time.monotonic() - t0
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=ignore_sigint if inherited_ignore else None)
+    try:
+        assert proc.stdout is not None
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if "running" in line:
+                break
+        time.sleep(1.0)
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+        elapsed = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:  # never leave a loop of three services running
+            proc.kill()
+            proc.wait()
     assert proc.returncode == 0, "".join(lines) + out + err
     assert elapsed < 2.5
     assert "interrupted" in out and "did not stop" not in out
