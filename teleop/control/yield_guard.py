@@ -36,8 +36,10 @@ sliding and its tactile estimate is not relied on).
 What it cannot see: physics that absorbs energy while its force keeps rising at least at
 ``yield_stiffness_ratio`` of its initial stiffness (a strongly work-hardening material with
 cells reading low); crushing done by the distal link alone while the proximal joint stands
-still; and the advance before the flag (at most about two windows: a deficit of at most
-``2 F window (1 - m g)`` per finger and contact).  All are stated in docs/controllers.md.
+still; and the advance before the flag, charged by the cells (``(1 - m g)`` of its work
+short): two windows on a clear yield, but longer while the force keeps creeping up (cells
+reading a millionth in the harness: flagged ~2.5 s into the push, after the bound broke).
+All are stated in docs/controllers.md.
 """
 
 from __future__ import annotations
