@@ -30,10 +30,10 @@ def yield_pad_spring(o: np.ndarray, scale: float, depth: float,
     """``sim.crush.yield_pad_spring`` over the object array."""
     k = o[4]
     h = o[9]
-    plastic = (k * depth - o[8]) / (k + h)
+    dent = pad_dent(o, crush, depth)
     rate = 1.0
-    if plastic > crush:
-        crush = plastic
+    if dent > crush:
+        crush = dent
         rate = h / (k + h)
     force = 0.0
     ke = 0.0

@@ -50,10 +50,10 @@ def yield_pad_spring(obj: ContactObject, scale: float, depth_m: float,
     level, plus the core; the damping factor multiplies ``c s`` (the rate of elastic depth)."""
     k = obj.stiffness_n_per_m
     h = obj.yield_hardening_n_per_m
-    plastic = (k * depth_m - obj.yield_force_n) / (k + h)
+    dent = pad_dent(obj, crush_m, depth_m)
     rate = 1.0
-    if plastic > crush_m:  # the dent grows with the depth: plastic tangent
-        crush_m = plastic
+    if dent > crush_m:  # the dent grows with the depth: plastic tangent
+        crush_m = dent
         rate = h / (k + h)
     force = 0.0
     ke = 0.0
