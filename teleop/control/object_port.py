@@ -215,11 +215,3 @@ def track_fingers(model: TactileModel, prev: tuple[PadTrack, ...] | None,
         tracks.append(t1)
         works.append((o, i))
     return tuple(tracks), tuple(works)
-
-
-def track_hand(model: TactileModel, prev: tuple[PadTrack, ...] | None,
-               fingers: tuple[FingerState, ...]
-               ) -> tuple[tuple[PadTrack, ...], float, float]:
-    """All fingers: ``(tracks, into J, back J)``."""
-    tracks, works = track_fingers(model, prev, fingers)
-    return tracks, sum(o for o, _ in works), sum(i for _, i in works)

@@ -23,7 +23,7 @@ from teleop.control.object_port import (
     contact_estimate,
     margin_charge_j,
     track_finger,
-    track_hand,
+    track_fingers,
     track_start,
 )
 from teleop.control.passivity_layer import hand_reservation_j, reservation_j, reserve_project
@@ -119,10 +119,11 @@ def test_encoder_noise_during_a_hold_costs_little() -> None:
 
 def test_free_motion_costs_nothing() -> None:
     fingers = tuple(state(0.1, (0.0,) * 9) for _ in range(3))
-    tracks, o, i = track_hand(MODEL, None, fingers)
+    tracks, works = track_fingers(MODEL, None, fingers)
+    assert works == ((0.0, 0.0),) * 3
     moved = tuple(state(1.5, (0.0,) * 9) for _ in range(3))
-    _, o, i = track_hand(MODEL, tracks, moved)
-    assert (o, i) == (0.0, 0.0)
+    _, works = track_fingers(MODEL, tracks, moved)
+    assert works == ((0.0, 0.0),) * 3
 
 
 def test_reservation_covers_servo_and_tendon() -> None:
