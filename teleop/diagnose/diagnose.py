@@ -186,8 +186,18 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
     else:
+        floors: dict[int, tuple[EEFit, Array]] = {}
+
+        def floor_of(f: EEFit) -> Array:
+            """The fit's effort noise floor, worked out once per fit (the selection asks
+            for the nominal's and the final's, and the report needs both again)."""
+            hit = floors.get(id(f))
+            if hit is None or hit[0] is not f:
+                hit = floors[id(f)] = (f, ee_noise(raw, sig, nominal, f, fixed_inertia, ~edge))
+            return hit[1]
+
         def noise_of(f: EEFit) -> float:
-            return noise_level(ee_noise(raw, sig, nominal, f, fixed_inertia, ~edge), ~edge)
+            return noise_level(floor_of(f), ~edge)
 
         nom_e, fin_e, chosen, ranking, proposed, amb = select_ee_with_library(
             sig, nominal, opts, names, fixed_inertia, scales, noise_of)
@@ -224,7 +234,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     else:
         # an effort residual: the position noise carried through filter, derivatives and model
         ok = ~edge
-        fl_b, fl_a = (ee_noise(raw, sig, nominal, f, fixed_inertia, ok) for f in (nom_e, fin_e))
+        fl_b, fl_a = floor_of(nom_e), floor_of(fin_e)
         sig_ok = {k: v[ok] for k, v in signals.items()}
         stats_b = analyse_residual(r_before[ok], noise_level(fl_b, ok), sig_ok)
         stats_a = analyse_residual(r_after[ok], noise_level(fl_a, ok), sig_ok)
