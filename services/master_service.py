@@ -52,6 +52,7 @@ class MasterService:
         self.wd = WatchdogState()
         self.events: list[str] = []
         self.ledger: EnergyLedger | None = None  # accounts after the last tick
+        self._prev_t_s: float | None = None
 
     def start(self) -> None:
         """Start the device."""
@@ -68,6 +69,15 @@ class MasterService:
             self.delay_s = r.delay_s
             got = True
         return got
+
+    def _elapsed_s(self, t_s: float) -> float:
+        """The time since the last tick in whole periods: one period normally, more after the
+        loop dropped deadlines in a stall, so the layer's velocity (position step over this
+        time) does not read a 30 ms stall's motion as 30x the speed, and a damping jolt."""
+        prev, self._prev_t_s = self._prev_t_s, t_s
+        if prev is None:
+            return self.dt_s
+        return max(round((t_s - prev) / self.dt_s), 1) * self.dt_s
 
     def tick(self, t_s: float) -> MasterSample:
         """One period at ``t_s``."""
@@ -86,7 +96,8 @@ class MasterService:
                           model=scaled_model(cmd.model, g))
         reading = self.backend.read(t_s)
         self.state, out = self.suite.step_master(self.state, self.params,
-                                                 reading.grip_position_m, cmd, self.dt_s)
+                                                 reading.grip_position_m, cmd,
+                                                 self._elapsed_s(t_s))
         self.backend.apply_force(out.force_n)
         self.seq += 1
         if got:  # echo for the controller's round-trip measurement

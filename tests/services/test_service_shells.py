@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from _svc_fakes import FakeHand
 
 from services.hand_service import HandService
 from services.master_service import MasterService
 from services.samples import sample_columns, sample_row
+from services.suites import get_suite
 from teleop.config import load_config
 from teleop.devices.base import MasterReading
 from teleop.messages import ForceCommand, HandCommand, Header
@@ -95,6 +98,42 @@ def test_master_force_ramps_in_and_out_with_the_force_commands() -> None:
     assert d[300] == 2.0  # fully in while commands flow
     assert d[-1] == 0.0  # ramped out after the commands stopped
     assert svc.wd.trips == 1
+
+
+class MovingTrigger(StillTrigger):
+    """A trigger closing at a steady ``speed_m_s``."""
+
+    def __init__(self, speed_m_s: float = 0.05) -> None:
+        super().__init__()
+        self.speed_m_s = speed_m_s
+
+    def read(self, t_s: float) -> MasterReading:
+        return MasterReading(t_s=t_s, grip_position_m=self.speed_m_s * t_s,
+                             grip_velocity_m_s=self.speed_m_s)
+
+
+def test_after_a_stall_the_master_layer_measures_the_true_speed() -> None:
+    """When the loop drops deadlines in a stall, the step gets the time that passed: the
+    layer's velocity (position step over it) stays the trigger's, not 30x it (a damping jolt
+    in the operator's hand; the CI run of 39f0811 saw one on the TakkTile test)."""
+    cfg = load_config(None, [])
+    hub = InProcessHub.from_config(cfg, VirtualClock())
+    dts: list[float] = []
+    base = get_suite(cfg.controller.kind)
+
+    def step_master(s, p, q, cmd, dt_s):  # type: ignore[no-untyped-def]
+        dts.append(dt_s)
+        return base.step_master(s, p, q, cmd, dt_s)
+
+    svc = MasterService(cfg, hub.bus("master"), MovingTrigger(),
+                        suite=replace(base, step_master=step_master))
+    dt = svc.dt_s
+    ticks = [k * dt for k in range(5)] + [(34 + k) * dt for k in range(5)]  # 29 dropped
+    v = [svc.tick(t).trigger_velocity_m_s for t in ticks]
+    assert dts[:5] == [dt] * 5 and dts[6:] == [dt] * 4  # bit-identical when on time
+    assert dts[5] == 30 * dt
+    speed = np.diff([0.05 * t for t in ticks]) / np.array(dts[1:])
+    assert np.allclose(speed, v[1:], rtol=1e-6)
 
 
 def test_sample_columns_match_rows() -> None:
