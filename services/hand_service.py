@@ -94,6 +94,7 @@ class HandService:
         self._was_limited = False
         self._model_fallbacks = 0
         self._yielding = 0
+        self._unseen = 0
         self.wd_params = hand_command_watchdog(cfg, watchdogs)
         self.wd = WatchdogState()
         self.events: list[str] = []
@@ -219,6 +220,11 @@ class HandService:
                                "sliding; tactile force not trusted there, further advance "
                                "charged at the servo's torque")
         self._yielding = out.yielding
+        if out.unseen > self._unseen:
+            self.events.append(f"unseen contact: {out.unseen} finger(s) stalled with silent "
+                               "tactile cells (dead cells, or a contact off the pads); further "
+                               "advance charged at the servo's torque")
+        self._unseen = out.unseen
         if out.limited:
             if not self._was_limited:
                 self.events.append("passivity layer limiting the set-points")
@@ -243,7 +249,8 @@ class HandService:
             dropped=float(self.dropped), watchdog=float(self.wd.tripped),
             model_fallbacks=float(out.model_fallbacks),
             servo_fault_trips=float(reading.servo_fault_trips),
-            servo_safe=float(reading.servo_safe), yielding=float(out.yielding))
+            servo_safe=float(reading.servo_safe), yielding=float(out.yielding),
+            unseen_contact=float(out.unseen))
 
     def close(self) -> None:
         """Go safe and release the hand."""

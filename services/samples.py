@@ -96,6 +96,7 @@ class HandSample:
     servo_fault_trips: float = 0.0  # servo error bits sent the hand safe this often so far
     servo_safe: float = 0.0  # 1 while held safe because of servo error bits
     yielding: float = 0.0  # fingers whose contact yields (tactile force not trusted there)
+    unseen_contact: float = 0.0  # fingers stalled on a contact their cells do not see
 
 
 Sample = MasterSample | ControllerSample | HandSample

@@ -121,6 +121,19 @@ class TactileConfig:
                                          "finger as yielding; its further advance is then "
                                          "charged at the servo's torque (0: guard off)",
                                          lo=0.0, hi=1.0)
+    stall_window_rad: float = param(0.1, "unseen-contact guard: inward motor travel (joint "
+                                    "side) over which the proximal joint's advance is measured "
+                                    "(0: guard off)", unit="rad", lo=0.0, hi=1.0)
+    stall_ratio: float = param(0.3, "unseen-contact guard: a proximal advance below this "
+                               "fraction of the motor's, with the cells silent and the distal "
+                               "link curled past free_curl_rad, flags the finger; its further "
+                               "inward motion is then charged at the servo's torque",
+                               lo=0.0, hi=1.0)
+    free_curl_rad: float = param(0.45, "unseen-contact guard: the most the motor (joint side) "
+                                 "runs ahead of the proximal encoder in free motion (the distal "
+                                 "link's curl; 0.385 rad at most on the simulated hand: "
+                                 "measure yours closing on nothing)",
+                                 unit="rad", lo=0.0, hi=3.0)
 
 
 @dataclass(frozen=True, slots=True)

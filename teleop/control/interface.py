@@ -169,6 +169,7 @@ class HandOutput:
     contact_model: tuple[float, ...] = NO_MODEL  # HandState.contact_model to send
     model_fallbacks: int = 0  # contact estimates dropped as diverged so far (all fingers)
     yielding: int = 0  # fingers whose contact yields (charged at the servo's torque)
+    unseen: int = 0  # fingers stalled on a contact the cells do not see (charged the same)
 
 
 @dataclass(frozen=True, slots=True)

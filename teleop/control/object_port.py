@@ -63,6 +63,9 @@ class TactileModel:
     force_margin: float = 1.15
     yield_window_m: float = 0.001
     yield_stiffness_ratio: float = 0.2
+    stall_window_rad: float = 0.1
+    stall_ratio: float = 0.3
+    free_curl_rad: float = 0.45
 
 
 @dataclass(frozen=True, slots=True)

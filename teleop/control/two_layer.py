@@ -53,6 +53,7 @@ from teleop.control.passivity_layer import (
     servo_potential_j,
     spring_energy_j,
 )
+from teleop.control.stall_guard import FREE, StallTrack, step_stall
 from teleop.control.transparency_layer import (
     TransparencyState,
     clip,
@@ -294,6 +295,7 @@ class HandPortState:
     held_j: float = 0.0  # what the fingers could push into the object after the last sample
     models: tuple[FingerModel, ...] | None = None  # contact model per finger (rendering on)
     yields: tuple[YieldTrack, ...] = (NO_CONTACT, NO_CONTACT, NO_CONTACT)  # yield guard
+    stalls: tuple[StallTrack, ...] = (FREE, FREE, FREE)  # unseen-contact guard
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -382,6 +384,16 @@ def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...]
     return tuple(out)
 
 
+def stall_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...],
+                  fingers: tuple[FingerState, ...], x: Triple) -> tuple[StallTrack, ...]:
+    """The unseen-contact guard's step for the three fingers
+    (:mod:`teleop.control.stall_guard`): motor angle, proximal encoder, cells' pad force."""
+    t = p.tactile
+    return tuple(step_stall(g, x_i, f.proximal_rad, b.prox_force_n + b.dist_force_n,
+                            t.stall_window_rad, t.stall_ratio, t.free_curl_rad)
+                 for g, b, f, x_i in zip(s.stalls, pads, fingers, x, strict=False))
+
+
 def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
                      command: HandCommand | None,
                      dt_s: float) -> tuple[HandPortState, HandOutput]:
@@ -394,14 +406,16 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
     pads, works = track_fingers(p.tactile, s.pads, fingers[:3])
     yields = guard_fingers(p, s, pads, x)
-    trusted = [w for w, g in zip(works, yields, strict=False) if not g.yielding]
+    stalls = stall_fingers(p, s, pads, fingers[:3], x)
+    blind = tuple(g.yielding or h.stalled for g, h in zip(yields, stalls, strict=False))
+    trusted = [w for w, b in zip(works, blind, strict=False) if not b]
     net = s.object_net_j + sum(o for o, _ in trusted) - sum(i for _, i in trusted)
     paid = margin_charge_j(p.tactile, s.object_net_j)
     charge = margin_charge_j(p.tactile, net) - paid
-    # a yielding finger's cells are not trusted: its inward motion is charged at the servo's
-    # torque (teleop.control.yield_guard)
-    crush = (yield_charge_j(x, s.x_prev, tuple(g.yielding for g in yields),
-                            p.servo_torque_max_nm) if s.x_prev is not None else 0.0)
+    # a yielding finger's cells are not trusted, a stalled one's see nothing: its inward
+    # motion is charged at the servo's torque (teleop.control.yield_guard, .stall_guard)
+    crush = (yield_charge_j(x, s.x_prev, blind, p.servo_torque_max_nm)
+             if s.x_prev is not None else 0.0)
     # one sample cannot deliver more than the fingers held at its start (servo potential,
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that
@@ -428,9 +442,11 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited, spring_energy_j=held,
-                     yielding=sum(1 for g in yields if g.yielding))
+                     yielding=sum(1 for g in yields if g.yielding),
+                     unseen=sum(1 for h in stalls if h.stalled))
     return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx, pads=pads,
-                         object_net_j=net, held_j=held, models=s.models, yields=yields), out
+                         object_net_j=net, held_j=held, models=s.models, yields=yields,
+                         stalls=stalls), out
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],

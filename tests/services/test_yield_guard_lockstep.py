@@ -1,10 +1,13 @@
-"""The yielding-contact guard on the simulated hand, lockstep, judged by the physical audit.
+"""The yielding- and unseen-contact guards on the simulated hand, lockstep, judged by the
+physical audit.
 
 A cylinder that crushes at 5 N under each pad (``hand.sim.object.yield_force_n``) and tactile
 cells reading a third of the true force (``hand.sim.tactile_gain``): the first grasp dents the
 object for good, so every joule the pads put in stays there.  The hand port's bound is that
 the object receives no more than the hand's tank has paid (its ledger's net charge); the
 object-port work comes from the simulator's own audit, never from the controller.
+Cells that read nothing at all (``tactile_gain = 0``: dead, or a contact off the pads) are the
+unseen-contact guard's case (:mod:`teleop.control.stall_guard`).
 """
 
 from __future__ import annotations
@@ -18,26 +21,28 @@ from teleop.config import load_config
 CRUSH = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0.333")
 
 
-def first_grasp(*overrides: str) -> tuple[float, float, int]:
-    """(object net work J, hand ledger net charge J, most fingers flagged yielding) over the
-    first grasp of the default script (5 s)."""
-    flagged = [0]
+def first_grasp(*overrides: str) -> tuple[float, float, int, int]:
+    """(object net work J, hand ledger net charge J, most fingers flagged yielding, most
+    flagged stalled on an unseen contact) over the first grasp of the default script (5 s)."""
+    flagged = [0, 0]
 
     def hook(_t: float, ctx: object) -> None:
-        flagged[0] = max(flagged[0], getattr(getattr(ctx, "hand", None), "_yielding", 0))
+        hand = getattr(ctx, "hand", None)
+        flagged[0] = max(flagged[0], getattr(hand, "_yielding", 0))
+        flagged[1] = max(flagged[1], getattr(hand, "_unseen", 0))
 
     r = run_lockstep(load_config(None, list(overrides)), 5.0, seed=1, hook=hook)
     assert r.has_audit
     obj = float(r.audit_environment_delivered_j[-1] - r.audit_environment_taken_j[-1])
     paid = float(r.hand_port_out_j[-1] - r.hand_port_in_j[-1])
-    return obj, paid, flagged[0]
+    return obj, paid, flagged[0], flagged[1]
 
 
 @pytest.mark.slow
 def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pays() -> None:
-    obj, paid, flagged = first_grasp(*CRUSH)
+    obj, paid, flagged, unseen = first_grasp(*CRUSH)
     assert obj > 0.1  # the pads did crush it
-    assert flagged >= 1
+    assert flagged >= 1 and unseen == 0  # the cells see the contact, they read it low
     assert paid >= obj
 
 
@@ -45,6 +50,39 @@ def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pay
 def test_without_the_guard_the_tank_pays_less_than_the_object_took() -> None:
     """The mutant kept as a test: the guard off, the same grasp is charged a fraction of
     the work the object really took (the bound broken, silently)."""
-    obj, paid, flagged = first_grasp(*CRUSH, "controller.tactile.yield_stiffness_ratio=0")
+    obj, paid, flagged, _ = first_grasp(*CRUSH, "controller.tactile.yield_stiffness_ratio=0")
     assert flagged == 0
     assert np.isfinite(paid) and paid < 0.5 * obj
+
+
+DEAD = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0")
+
+
+@pytest.mark.slow
+def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays() -> None:
+    """Cells reading nothing: the fingers stall on the cylinder with silent cells, the
+    unseen-contact guard flags them and charges their further advance at the servo's torque
+    (measured 2026-11-26: object 0.30 J, tank paid 14.5 J, 3 fingers)."""
+    obj, paid, _, unseen = first_grasp(*DEAD)
+    assert obj > 0.1
+    assert unseen >= 1
+    assert paid >= obj
+
+
+@pytest.mark.slow
+def test_without_the_stall_guard_dead_cells_are_charged_nothing() -> None:
+    """The mutant kept as a test: the guard off, the crushing grasp costs the tank nothing."""
+    obj, paid, _, unseen = first_grasp(*DEAD, "controller.tactile.stall_window_rad=0")
+    assert unseen == 0
+    assert obj > 0.1 and paid < 0.5 * obj
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("style", ["soft", "hard"])
+def test_dead_cells_on_an_elastic_object_raise_the_alarm(style: str) -> None:
+    """An elastic cylinder, every operator: the alarm comes whatever the object does (the
+    operator feels nothing and squeezes on; the tank pays the servo's worst case)."""
+    obj, paid, flagged, unseen = first_grasp("hand.sim.tactile_gain=0",
+                                             f"master.virtual.style={style}")
+    assert unseen >= 1 and flagged == 0
+    assert paid >= obj

@@ -128,8 +128,11 @@ def test_cells_reading_almost_nothing_break_the_bound_before_the_alarm() -> None
 
 def test_a_contact_the_cells_do_not_see_is_not_charged() -> None:
     """The assumption "contact is seen by the cells" broken: readings below the cells'
-    noise floor on the yielding object.  Nothing is charged, nothing is flagged, the bound
-    breaks: no alarm (docs/controllers.md lists it as not covered)."""
+    noise floor on the yielding object.  This harness's finger is one link (motor and
+    proximal angle the same), so the unseen-contact guard, which reads the proximal link
+    stalling behind the motor, has nothing to see: nothing is charged or flagged and the
+    bound breaks.  On the simulated ReFlex finger the guard flags it and the tank pays
+    (tests/services/test_yield_guard_lockstep.py)."""
     r = run(P, replace(PUSH, pressure_per_nm=0.05))
     assert r.yielding_hand == 0
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""

@@ -1,14 +1,16 @@
-"""False-alarm scan of the yielding-contact guard on the simulated hand's elastic objects.
+"""False-alarm scan of the yielding-contact and unseen-contact guards on the simulated hand.
 
     python tests/teleop/control/yield_scan.py [SECONDS] [DELAYS] [KEY=VALUE ...]
 
 Lockstep, defaults, seed 1: every operator style (soft, relaxed, hard) x every elastic object
-of the robustness grid (soft cylinder, stiff cylinder, block) x each one-way delay of
+of the robustness grid (soft cylinder, stiff cylinder, block) and free air x each one-way
+delay of
 ``DELAYS`` (comma-separated seconds, both links; default ``0,0.2``), ``SECONDS`` of virtual
 time each (default 30), extra config overrides after them (e.g.
 ``links.master_controller.loss=0.2 links.controller_hand.loss=0.2``).  Prints, per run, the
-most fingers the hand flagged as yielding at once (0 everywhere is no false alarm) and the
-smallest margin of the physical energy audit.  docs/controllers.md quotes its figures.
+most fingers the hand flagged as yielding, and as stalled on a contact its cells do not see,
+at once (0 everywhere is no false alarm: the cells work and nothing yields) and the smallest
+margin of the physical energy audit.  docs/controllers.md quotes its figures.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from teleop.analysis.sweep_objects import with_object
 from teleop.config import load_config
 
 OPERATORS = ("soft", "relaxed", "hard")
-ELASTIC = ("soft-cylinder", "stiff-cylinder", "block")
+ELASTIC = ("soft-cylinder", "stiff-cylinder", "block", "free-air")
 
 
 def scan(seconds: float, delays_s: tuple[float, ...], extra: list[str]) -> int:
@@ -35,16 +37,19 @@ def scan(seconds: float, delays_s: tuple[float, ...], extra: list[str]) -> int:
         cfg = with_object(load_config(None, [
             f"master.virtual.style={op}", f"links.master_controller.delay_s={delay}",
             f"links.controller_hand.delay_s={delay}", *extra]), obj)
-        most = [0]
+        most = [0, 0]
 
         def hook(_t: float, ctx: Any, most: list[int] = most) -> None:
-            most[0] = max(most[0], getattr(ctx.hand, "_yielding", 0) if ctx.hand else 0)
+            if ctx.hand:
+                most[0] = max(most[0], ctx.hand._yielding)
+                most[1] = max(most[1], ctx.hand._unseen)
 
         t0 = time.perf_counter()
         r = run_lockstep(cfg, seconds, seed=1, hook=hook)
         margin = float(np.nanmin(r.audit_margin_j)) if r.has_audit else float("nan")
-        flagged_runs += most[0] > 0
-        print(f"{op:8} {obj:15} {delay * 1000:5.0f} ms  fingers flagged {most[0]}  "
+        flagged_runs += max(most) > 0
+        print(f"{op:8} {obj:15} {delay * 1000:5.0f} ms  fingers flagged yielding {most[0]} "
+              f"unseen {most[1]}  "
               f"audit margin {margin:.4f} J  ({time.perf_counter() - t0:.1f} s)", flush=True)
     return flagged_runs
 
