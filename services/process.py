@@ -27,7 +27,7 @@ from typing import Any
 from services.heap import HeapTrimmer, limit_arenas
 from services.runtime import LoopStats, RateLoop, try_realtime_priority
 from services.samples import status_line
-from services.telemetry import Telemetry
+from services.telemetry import Telemetry, is_alarm
 from teleop.config import TeleopConfig
 
 REALTIME_SPIN_S = 1e-4  # spin before each deadline under SCHED_FIFO (3e-4 otherwise)
@@ -236,6 +236,9 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         def tick(t_s: float) -> None:
             last[0] = svc.tick(t_s)
             tel.emit(last[0], svc.events, svc.last_reading if is_hand else None)
+            for ev in svc.events:  # alarms reach the terminal too, not only the dashboard
+                if is_alarm(ev):
+                    print(ev, flush=True)
             if soak is not None and soak.due():
                 led = getattr(svc, "ledger", None)
                 smp = last[0]

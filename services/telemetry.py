@@ -25,6 +25,21 @@ from teleop.devices.base import HandReading
 from teleop.recording import RecordingWriter
 from teleop.transport.safe_decoder import RejectCounts
 
+#: words that make an event an alarm: a contact the tactile cells are not trusted on (raised
+#: once per contact; printed by a live service as well as logged)
+ALARM_WORDS = ("yielding", "unseen contact")
+
+
+def is_alarm(text: str) -> bool:
+    """Whether the event ``text`` is an alarm (:data:`ALARM_WORDS`)."""
+    return any(w in text for w in ALARM_WORDS)
+
+
+def event_level(text: str) -> str:
+    """``WARN`` for an alarm, a fault or a watchdog (logged, not printed: a fault is
+    reported with every reading while it lasts, and a watchdog on a loaded host trips and
+    resumes many times a second); ``INFO`` otherwise."""
+    return "WARN" if is_alarm(text) or "watchdog" in text or "fault" in text else "INFO"
 
 class Telemetry:
     """Recording and dashboard output of one service."""
@@ -80,8 +95,7 @@ class Telemetry:
             self._delay(sample.__class__.__name__, sample.delay_s)
 
         for text in events:
-            level = "WARN" if any(w in text for w in ("watchdog", "fault", "yielding")) else "INFO"
-            dash.log_event(self.rec, t, self.role, text, level)
+            dash.log_event(self.rec, t, self.role, text, event_level(text))
         if t < self._next_log_s:
             return
         self._next_log_s = t + self.period_s
