@@ -19,7 +19,8 @@ import numpy as np
 from teleop.diagnose import candidates as cand
 from teleop.diagnose import library
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.ee_noise import ee_noise, excess_windows, noise_level
+from teleop.diagnose.ee_align import aligned_selection, shifted
+from teleop.diagnose.ee_noise import Raw, ee_noise, excess_windows, noise_level
 from teleop.diagnose.equation_error import (
     EEFit,
     concat_ee,
@@ -29,7 +30,16 @@ from teleop.diagnose.equation_error import (
     ee_signals,
     model_equation_error,
 )
-from teleop.diagnose.fit import BEFORE, FitData, ModelFit, Segment, build, fit_model, simulate
+from teleop.diagnose.fit import (
+    BEFORE,
+    SHIFT,
+    FitData,
+    ModelFit,
+    Segment,
+    build,
+    fit_model,
+    simulate,
+)
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.propose import select_with_library
 from teleop.diagnose.propose_ee import select_ee_with_library
@@ -186,29 +196,37 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         if segs[0].u is not None:
             signals["input"] = np.concatenate([s.u for s in segs])  # type: ignore[misc]
     else:
-        floors: dict[int, tuple[EEFit, Array]] = {}
+        def select_ee(raw_a: list[Raw]):  # noqa: ANN202 (a local tuple)
+            sig_a = concat_ee([ee_signals(t, y, u) for t, u, y in raw_a])
+            floors: dict[int, tuple[EEFit, Array]] = {}
 
-        def floor_of(f: EEFit) -> Array:
-            """The fit's effort noise floor, worked out once per fit (the selection asks
-            for the nominal's and the final's, and the report needs both again)."""
-            hit = floors.get(id(f))
-            if hit is None or hit[0] is not f:
-                hit = floors[id(f)] = (f, ee_noise(raw, sig, nominal, f, fixed_inertia, ~edge))
-            return hit[1]
+            def floor_of(f: EEFit) -> Array:
+                """The fit's effort noise floor, worked out once per fit (the selection asks
+                for the nominal's and the final's, and the report needs both again)."""
+                hit = floors.get(id(f))
+                if hit is None or hit[0] is not f:
+                    hit = floors[id(f)] = (f, ee_noise(raw_a, sig_a, nominal, f, fixed_inertia,
+                                                       ~edge))
+                return hit[1]
 
-        def noise_of(f: EEFit) -> float:
-            return noise_level(floor_of(f), ~edge)
+            def noise_of(f: EEFit) -> float:
+                return noise_level(floor_of(f), ~edge)
 
-        nom_e, fin_e, chosen, ranking, proposed, amb = select_ee_with_library(
-            sig, nominal, opts, names, fixed_inertia, scales, noise_of)
+            return sig_a, floor_of, select_ee_with_library(
+                sig_a, nominal, opts, names, fixed_inertia, scales, noise_of)
+
+        shift_s, (sig, floor_of, selected) = aligned_selection(
+            raw, nominal, fixed_inertia, select_ee, lambda r: r[2][1])
+        nom_e, fin_e, chosen, ranking, proposed, amb = selected
         ee_nom, ee_fin = nom_e.residual, fin_e.residual
         tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[~edge]
         tgt_scale = float(np.linalg.norm(tgt - np.mean(tgt)))
         before = float(np.linalg.norm(ee_nom[~edge])) / tgt_scale
         after = float(np.linalg.norm(ee_fin[~edge])) / tgt_scale
         r_before, r_after = ee_nom, ee_fin
-        nominal_params = tuple(zip(nom_e.names, nom_e.coef, strict=True))
-        final_params = tuple(zip(fin_e.names, fin_e.coef, strict=True)) + fin_e.extra
+        aligned = ((SHIFT, shift_s),) if sig.u is not None else ()
+        nominal_params = tuple(zip(nom_e.names, nom_e.coef, strict=True)) + aligned
+        final_params = tuple(zip(fin_e.names, fin_e.coef, strict=True)) + fin_e.extra + aligned
         traces = Traces(sig.t, sig.u if sig.u is not None else fixed_inertia * sig.a,
                         (sig.u if sig.u is not None else fixed_inertia * sig.a) + ee_nom,
                         (sig.u if sig.u is not None else fixed_inertia * sig.a) + ee_fin, ee_fin)
@@ -242,7 +260,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     val = None
     if validate is not None:
         val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
-               else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia))
+               else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia, shift_s))
     units = (library.units(opts.input_col, "effort units"),
              library.units(opts.output_col, "position units"))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
@@ -270,9 +288,10 @@ def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFi
 
 
 def _validate_ee(rec: Recording, opts: DiagnoseOptions, nominal: AxisNominal, nom: EEFit,
-                 final: EEFit, fixed_inertia: float) -> Validation:
-    """Equation-error NRMSE (effort) of both fitted models on a held-out recording."""
-    t, u, y = _signals(rec, opts)
+                 final: EEFit, fixed_inertia: float, shift_s: float) -> Validation:
+    """Equation-error NRMSE (effort) of both fitted models on a held-out recording (its input
+    aligned as the fitted recordings' was)."""
+    ((t, u, y),) = shifted([_signals(rec, opts)], shift_s)
     sig = ee_signals(t, y, u)
     m = int(3 * sig.fs_hz / sig.cutoff_hz)
     keep = slice(m, len(t) - m)

@@ -1,10 +1,13 @@
 """Equation-error (inverse dynamics) fits of the axis: linear least squares on filtered signals.
 
 The position is low-passed with a zero-phase Butterworth filter and differentiated twice; every
-regressor (input included) goes through the same filter, so linear terms satisfy the filtered
-equation exactly.  Effects that enter nonlinearly through one constant (dead time, lag,
-saturation, Stribeck velocity) are handled by a one-dimensional grid around the linear solve.
-"""
+regressor (input included) is the same number of filter passes away from the physics (two: the
+filtered position's ``a``, ``v``, ``x`` get one more, the input, the friction law and every
+other function of the state two), so linear terms satisfy the filtered equation exactly.  (The
+input and the law used to get one pass against the position columns' two: on a stiff PD loop
+with Coulomb friction that left an equation error 16x its noise, mostly at low speed.)  Effects
+that enter nonlinearly through one constant (dead time, lag, saturation, Stribeck velocity) are
+handled by a one-dimensional grid around the linear solve. """
 
 from __future__ import annotations
 
@@ -21,6 +24,12 @@ from teleop.diagnose.axis_model import Array, AxisParams, delayed, input_effort,
 from teleop.diagnose.library import Term, column
 from teleop.diagnose.model import AxisNominal
 from teleop.effects import EffectSet
+
+LAW_CUTOFF = 2.0
+"""The friction sign law's velocity is filtered at this many times the cutoff: the law switches
+where the velocity crosses zero, and a velocity smoothed as much as the regression's signals
+moves the switch near a reversal (measured on a PD drive with Coulomb friction,
+docs/diagnose-results.md: the low-speed equation error about 3x smaller)."""
 
 EE_EFFECTS = ("dead_time", "coulomb_friction", "asymmetric_friction", "stiction",
               "actuator_saturation", "actuator_gain", "actuator_lag", "sensor_offset",
@@ -39,6 +48,14 @@ class EESignals:
     fs_hz: float
     cutoff_hz: float
     step: int          # decimation of the regression rows (roughly independent residuals)
+    v_law: Array | None = None   # velocity for the friction sign law (a wider filter), else v
+
+    @property
+    def sign(self) -> Array:
+        """The friction sign law ``tanh(v / eps)``, ``eps`` 2 % of the velocity's spread, on
+        :attr:`v_law`."""
+        v = self.v if self.v_law is None else self.v_law
+        return np.tanh(v / (0.02 * float(np.std(self.v)) + 1e-12))
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +108,8 @@ def ee_signals(t: Array, y: Array, u: Array | None, cutoff_hz: float | None = No
     a = np.gradient(v, t)
     uf = None if u is None else np.asarray(u, float)
     step = max(1, int(fs / (4 * fc)))
-    return EESignals(t, x, v, a, uf, fs, fc, step)
+    v_law = np.gradient(_filt(y, fs, min(LAW_CUTOFF * fc, 0.45 * fs)), t)
+    return EESignals(t, x, v, a, uf, fs, fc, step, v_law)
 
 
 def contiguous(ts: Sequence[Array]) -> Array:
@@ -112,7 +130,9 @@ def concat_ee(sigs: Sequence[EESignals]) -> EESignals:
     u = None if sigs[0].u is None else np.concatenate([s.u for s in sigs])  # type: ignore[misc]
     return EESignals(contiguous([s.t for s in sigs]), np.concatenate([s.x for s in sigs]),
                      np.concatenate([s.v for s in sigs]), np.concatenate([s.a for s in sigs]),
-                     u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step)
+                     u, sigs[0].fs_hz, sigs[0].cutoff_hz, sigs[0].step,
+                     None if any(s.v_law is None for s in sigs)
+                     else np.concatenate([s.v_law for s in sigs]))  # type: ignore[misc]
 
 
 def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
@@ -128,12 +148,12 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
     nominal."""
     g = _gain(sig, effects)
     x, v, a = sig.x, sig.v, sig.a
-    eps = 0.02 * float(np.std(v)) + 1e-12
-    sgn = np.tanh(v / eps)
+    sgn = sig.sign
     names: list[str] = []
     cols: list[Array] = []
     bnds: list[tuple[float, float]] = []
-    target = np.zeros_like(x)
+    target = np.zeros_like(x)         # efforts of unfiltered signals (the input)
+    target_filt = np.zeros_like(x)    # efforts of the filtered position's signals
     term_cols = {"inertia": a, "viscous": v, "stiffness": x, "gravity": np.sin(x),
                  "coulomb": sgn, "offset": -np.ones_like(x)}
     for term in nominal.terms:
@@ -144,7 +164,7 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
         lo_, hi_ = nominal.bounds(term)
         bnds.append((lo_ / g, hi_ / g))
     if sig.u is None:
-        target = target - fixed_inertia * a
+        target_filt = target_filt - fixed_inertia * a
     else:
         ue = sig.u
         if "dead_time" in effects:
@@ -156,7 +176,7 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
             ue = lagged(sig.t, ue, effects["actuator_lag"])
         target = target + ue
         if "inertia" not in nominal.terms:
-            target = target - fixed_inertia / g * a
+            target_filt = target_filt - fixed_inertia / g * a
     extra_cols = {
         "coulomb_friction": (sgn, (0.0, math.inf)),
         "asymmetric_friction": ((v > 0).astype(float), (0.0, math.inf)),
@@ -184,7 +204,13 @@ def _columns(sig: EESignals, nominal: AxisNominal, effects: dict[str, float],
         names.append(term.key)
         cols.append(-column(term, sig.t, x, v, sig.u))
         bnds.append((-math.inf, math.inf))
-    return names, cols, bnds, target
+    # every column the same filter passes away from the physics: a, v and x are the filtered
+    # position's (one pass), so what stands for an unfiltered signal (the input, the friction
+    # law, any other function of the state) gets one pass here; the fit gives all one more
+    lin = {"inertia", "viscous", "stiffness"}
+    cols = [c if n in lin else _filt(c, sig.fs_hz, sig.cutoff_hz)
+            for n, c in zip(names, cols, strict=True)]
+    return names, cols, bnds, target_filt + _filt(target, sig.fs_hz, sig.cutoff_hz)
 
 
 SCANNED = ("dead_time", "actuator_lag", "actuator_saturation", "stiction", "actuator_gain")
@@ -262,12 +288,18 @@ def model_equation_error(sig: EESignals, p: AxisParams, eff: EffectSet) -> Array
     return p.inertia * a - total
 
 
-def ee_apply(sig: EESignals, nominal: AxisNominal, fit: EEFit, fixed_inertia: float) -> Array:
-    """Effort residual of an already fitted equation-error model on other signals."""
+def fit_effects(fit: EEFit, nominal: AxisNominal) -> dict[str, float]:
+    """The effects (name -> constant) ``fit`` was fitted with."""
     effects = dict(fit.extra)
     for n in fit.names:
         if n in EE_EFFECTS and n not in nominal.terms and n not in effects:
             effects[n] = 1.0
+    return effects
+
+
+def ee_apply(sig: EESignals, nominal: AxisNominal, fit: EEFit, fixed_inertia: float) -> Array:
+    """Effort residual of an already fitted equation-error model on other signals."""
+    effects = fit_effects(fit, nominal)
     names, cols, _, target = _columns(sig, nominal, effects, fixed_inertia, fit.terms)
     gain = _gain(sig, effects)
     coef = {n: c / gain for n, c in zip(fit.names, fit.coef, strict=True)}

@@ -29,7 +29,8 @@ from teleop.diagnose.results import DiagnoseOptions, EffectResult
 
 def _ee_slice(sig: EESignals, sl: slice) -> EESignals:
     return EESignals(sig.t[sl], sig.x[sl], sig.v[sl], sig.a[sl],
-                     None if sig.u is None else sig.u[sl], sig.fs_hz, sig.cutoff_hz, sig.step)
+                     None if sig.u is None else sig.u[sl], sig.fs_hz, sig.cutoff_hz, sig.step,
+                     None if sig.v_law is None else sig.v_law[sl])
 
 
 def _ee_holdout(sig: EESignals, nominal: AxisNominal, cur: EEState, aug: EEState, name: str,

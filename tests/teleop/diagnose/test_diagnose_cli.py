@@ -144,8 +144,11 @@ def test_equation_error_finds_friction_in_closed_loop_data() -> None:
     assert d.effects and d.effects[0].name == "coulomb_friction"
     assert abs(d.effects[0].params[0][1] - 3.0) < 0.3
     # all its physics is in the catalog: no library term beside the Coulomb level (with the
-    # library offered after it, u(t - 0.1 s) and v|v| were kept here)
+    # library offered after it, u(t - 0.1 s) and v|v| were kept here while the equation error
+    # was inconsistent: input one filter pass from the physics against the position columns'
+    # two, input misaligned by a sample; residual 15.6x its noise, now 1.0x)
     assert d.proposed == (), d.proposed
+    assert d.residual_after.rms_over_noise < 2.0, d.residual_after
     assert d.nrmse_after < 0.5 * d.nrmse_before
     assert d.validation is not None
     assert d.validation.nrmse_after < 0.5 * d.validation.nrmse_before

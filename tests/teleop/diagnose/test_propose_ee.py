@@ -6,6 +6,7 @@ quantisation, nominal parameters stated a few per cent off)."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -21,11 +22,14 @@ COUNT_RAD = 2 * math.pi / 4096
 M, C, FC = 0.8, 0.6, 0.3
 PERIOD_RAD = 0.25
 COG_NM = 1.5
+BUMP_RAD = 0.3
 
 
-def drive(seed: int, cog_nm: float, duration_s: float = 8.0, asym_nm: float = 0.0
-          ) -> Recording:
-    """``asym_nm``: Coulomb friction that acts only while moving in the positive direction."""
+def drive(seed: int, cog_nm: float, duration_s: float = 8.0, asym_nm: float = 0.0,
+          coulomb_nm: float = 0.0, bump_nm: float = 0.0) -> Recording:
+    """``asym_nm``: Coulomb friction that acts only while moving in the positive direction;
+    ``coulomb_nm``: Coulomb friction beyond the nominal's (both directions); ``bump_nm``: a
+    hard spot, a torque ``bump_nm exp(-((x - BUMP_RAD) / 0.05)^2)`` (in no library family)."""
     rng = np.random.default_rng(seed)
     n = int(duration_s * RATE_HZ)
     t = np.arange(n) / RATE_HZ
@@ -36,8 +40,10 @@ def drive(seed: int, cog_nm: float, duration_s: float = 8.0, asym_nm: float = 0.
     w = 2 * math.pi / PERIOD_RAD
 
     def acc(x: float, v: float, u: float) -> float:
-        fr = C * v + FC * math.tanh(v / 1e-3) + asym_nm * (0.5 + 0.5 * math.tanh(v / 1e-3))
-        return (u - fr + cog_nm * math.sin(w * x)) / M
+        fr = (C * v + (FC + coulomb_nm) * math.tanh(v / 1e-3)
+              + asym_nm * (0.5 + 0.5 * math.tanh(v / 1e-3)))
+        bump = bump_nm * math.exp(-(((x - BUMP_RAD) / 0.05) ** 2))
+        return (u - fr + cog_nm * math.sin(w * x) - bump) / M
 
     x = v = 0.0
     xs, us = np.empty(n), np.empty(n)
@@ -64,6 +70,17 @@ def _diagnose(rec: Recording):  # noqa: ANN202
                                            analysis="equation-error"))
 
 
+def _periodic(d) -> list[tuple[float, list[float]]]:  # noqa: ANN001
+    """(wavenumber, coefficients) of the proposed sin/cos terms within 2 % of the cogging's."""
+    waves: dict[float, list[float]] = {}
+    for p in d.proposed:
+        for k, c in zip(p.keys, p.coefs, strict=True):
+            if k.startswith("term:sin:") or k.startswith("term:cos:"):
+                waves.setdefault(float(k.split(":")[2]), []).append(c)
+    w = 2 * math.pi / PERIOD_RAD
+    return [(k, cs) for k, cs in waves.items() if abs(k / w - 1) < 0.02]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [1, 2, 4, 5, 6, 7])
 def test_cogging_in_closed_loop_data_is_proposed_as_a_position_periodic_term(seed: int) -> None:
@@ -71,41 +88,70 @@ def test_cogging_in_closed_loop_data_is_proposed_as_a_position_periodic_term(see
     drive it wins and no catalog effect is named.  (With terms proposed only where no catalog
     effect was accepted, seeds 2, 4, 5 and 6 named a dead time of 0.01-0.04 s instead, and
     got no term.)  3 s drives keep the test short: wavenumber 24.97-25.15 (truth 25.13),
-    amplitude 1.29-1.48 N m (truth 1.5) measured."""
+    amplitude 1.47-1.54 N m (truth 1.5) measured (1.29-1.48 before the equation error's filter
+    passes and input alignment were made consistent)."""
     d = _diagnose(drive(seed, COG_NM, 3.0))
     assert d.analysis == "equation-error"
-    waves = {}
-    for p in d.proposed:
-        for k, c in zip(p.keys, p.coefs, strict=True):
-            if k.startswith("term:sin:") or k.startswith("term:cos:"):
-                waves.setdefault(float(k.split(":")[2]), []).append(c)
-    w = 2 * math.pi / PERIOD_RAD
-    hits = [(k, cs) for k, cs in waves.items() if abs(k / w - 1) < 0.02]
+    hits = _periodic(d)
     assert hits, (d.proposed, d.effects)
     amp = math.hypot(*hits[0][1])
     assert abs(amp / COG_NM - 1) < 0.25, amp
     # what the term explains is not also named as a catalog effect
     assert not d.effects, d.effects
     assert d.nrmse_after < 0.5 * d.nrmse_before
-    assert d.residual_after.rms_over_noise < 2.0   # measured 1.00-1.32
+    assert d.residual_after.rms_over_noise < 2.0   # measured 0.77-1.19
 
 
 @pytest.mark.slow
-def test_cogging_left_behind_a_catalog_effect_is_warned_about_with_where() -> None:
-    """A drive with a direction-dependent Coulomb level (2 N m, in the catalog) and the
-    cogging: the catalog effect wins the first step, and once a catalog effect is named the
-    library is not offered again (terms next to a Coulomb law fit the equation error's
-    filtered-sign artefact, see propose_ee), so the cogging stays in the residual; the report
-    must then say so, and where (time and position ranges)."""
-    d = _diagnose(drive(2, COG_NM, 3.0, asym_nm=2.0))
+@pytest.mark.parametrize("seed", [1, 2, 4, 5, 6, 7])
+def test_cogging_behind_a_catalog_effect_is_named_as_a_periodic_term(seed: int) -> None:
+    """A direction-dependent Coulomb level (2 N m, in the catalog) and the cogging: the
+    catalog effect wins the first step; the library is then offered on what it leaves (the
+    effect kept in the model), by the same engine and rule, and the periodic term is named as
+    an equation with units.  Before (library not offered once a catalog effect was named):
+    only the unexplained-residual warning (3.8-6.1x the noise).  Measured: wavenumber
+    24.98-25.23 (truth 25.13), amplitude 1.46-1.55 N m (truth 1.5), residual 0.83-1.10x,
+    level 1.95-2.06 N m in the joint fit with the term."""
+    d = _diagnose(drive(seed, COG_NM, 3.0, asym_nm=2.0))
+    assert [e.name for e in d.effects] == ["asymmetric_friction"], d.effects
+    # its level as it stands in the joint fit with the term (measured 2.00-2.05)
+    assert abs(d.effects[0].params[0][1] / 2.0 - 1) < 0.1, d.effects
+    hits = _periodic(d)
+    assert hits, (d.proposed, d.effects)
+    assert abs(math.hypot(*hits[0][1]) / COG_NM - 1) < 0.25, hits
+    assert d.residual_after.rms_over_noise < 2.0, d.residual_after
+    doc = to_json(d)
+    assert not doc["unexplained"], doc["unexplained"]
+    eq = doc["proposed"][0]["equation"]
+    assert "sin(" in eq and "[N m]" in eq and "rad^-1" in eq, eq
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2, 4, 5, 6, 7])
+def test_a_catalog_effect_alone_gets_no_library_term(seed: int) -> None:
+    """The same drives without the cogging: the catalog effect, and no library term (the
+    library stage after the catalog finds nothing that passes; measured residual
+    0.86-1.19x)."""
+    d = _diagnose(drive(seed, 0.0, 3.0, asym_nm=2.0))
+    assert [e.name for e in d.effects] == ["asymmetric_friction"], d.effects
+    assert d.proposed == (), d.proposed
+
+
+@pytest.mark.slow
+def test_physics_outside_the_library_is_warned_about_with_where() -> None:
+    """A hard spot at one position (no library family fits it) beside the direction-dependent
+    Coulomb level: the catalog effect is named, no term explains the rest, and the report says
+    the residual stays above the noise, and where: every span it names passes the spot."""
+    d = _diagnose(drive(2, 0.0, 3.0, asym_nm=2.0, bump_nm=10.0))
     assert d.effects and d.effects[0].name == "asymmetric_friction", d.effects
-    assert d.residual_after.rms_over_noise > 3.0, d.residual_after
+    assert d.residual_after.rms_over_noise > 3.0, d.residual_after   # measured 6.8
     warning = to_json(d)["unexplained"]
-    assert warning and "unexplained residual" in warning, warning
-    assert d.unexplained_where and "where" in warning
-    span = sum(w.t_end_s - w.t_start_s for w in d.unexplained_where)
-    assert span > 1.0, d.unexplained_where     # the cogging acts wherever the drive moves
-    assert all("position" in w.why for w in d.unexplained_where)
+    assert warning and "unexplained residual" in warning and "where" in warning, warning
+    assert d.unexplained_where
+    for w in d.unexplained_where:
+        found = re.search(r"position (\S+) to (\S+)", w.why)
+        assert found, w.why
+        assert float(found[1]) <= BUMP_RAD <= float(found[2]), w
 
 
 @pytest.mark.slow
