@@ -44,12 +44,14 @@ from dataclasses import dataclass
 
 from teleop.control.interface import ControlParams
 from teleop.control.transparency_layer import grip_to_setpoints
+from teleop.frozen import fast_init
 
 Triple = tuple[float, float, float]
 _ENVELOPE_STEPS = 24
 _ALPHAS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class RenderState:
     """The model being rendered, per finger, and the share of the received one it has."""

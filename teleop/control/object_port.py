@@ -43,6 +43,7 @@ import functools
 import math
 from dataclasses import dataclass
 
+from teleop.frozen import fast_init
 from teleop.messages import FingerState
 
 
@@ -65,6 +66,7 @@ class TactileModel:
     yield_stiffness_ratio: float = 0.2
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class PadTrack:
     """One finger's tracked contact: last angles, forces and positions."""

@@ -51,6 +51,7 @@ from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 from teleop.config.transport import LinksConfig
+from teleop.frozen import fast_init
 from teleop.messages import Message
 from teleop.transport.delay_line import (
     DelayLineState,
@@ -80,6 +81,7 @@ REBASE_MAX_SEQ_GAP = 100_000
 SEQ_REBASE_MIN_S = 0.25
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class Received:
     """One message handed to the receiving service."""
