@@ -42,7 +42,7 @@ from teleop.transport.bus import (
 from teleop.transport.clock import Clock
 from teleop.transport.codec import KINDS, encode
 from teleop.transport.exact import round_trips
-from teleop.transport.keys import check_role, check_session, signal_spec
+from teleop.transport.keys import SIGNALS, check_role, check_session, signal_spec
 from teleop.transport.safe_decoder import SafeDecoder
 
 
@@ -143,11 +143,13 @@ class InProcessBus:
     def publish(self, signal: str, msg: Message) -> None:
         """Put ``msg`` on its link at the hub clock's time: as the object when the codec
         round-trips it exactly, else encoded (see the module docstring)."""
-        check_publish(self.role, signal, msg)
+        spec = SIGNALS.get(signal)
+        if spec is None or spec.sender != self.role or type(msg) is not spec.msg_type:
+            check_publish(self.role, signal, msg)  # raises: a programming error
         if self._closed:
             return
-        self._hub._deliver(signal, msg if round_trips(msg) else encode(msg),
-                           self._hub.clock.now_s())
+        hub = self._hub
+        hub._deliver(signal, msg if round_trips(msg) else encode(msg), hub.clock.now_s())
 
     def receive(self, signal: str) -> list[Received]:
         """Messages on ``signal`` due at the hub clock's time."""
