@@ -160,6 +160,8 @@ class InProcessBus:
 
     def alive(self, role: str) -> bool:
         """Whether ``role`` has a live view on the hub."""
+        if role in self._hub._views:  # a live view's role is a checked one
+            return True
         return self._hub._is_alive(check_role(role))
 
     def stats(self) -> BusStats:
