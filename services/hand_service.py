@@ -46,6 +46,13 @@ def clamp(x: float, lo: float, hi: float) -> float:
 def clamp_command(cmd: HandCommand, finger_max_rad: float,
                   preshape_max_rad: float) -> HandCommand:
     """``cmd`` with its set-points inside the joint limits (the same object if they are)."""
+    pre = cmd.preshape_rad
+    if 0.0 <= pre <= preshape_max_rad:  # inside (the comparisons clamp makes): unchanged
+        for v in cmd.finger_setpoint_rad:
+            if v < 0.0 or v > finger_max_rad:
+                break
+        else:
+            return cmd
     sp = tuple(clamp(v, 0.0, finger_max_rad) for v in cmd.finger_setpoint_rad)
     pre = clamp(cmd.preshape_rad, 0.0, preshape_max_rad)
     if sp == tuple(cmd.finger_setpoint_rad) and pre == cmd.preshape_rad:

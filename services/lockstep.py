@@ -225,46 +225,64 @@ _MASTER_COLS = ("t_s", "trigger_position_m", "trigger_velocity_m_s", "operator_f
 _master_row = attrgetter(*_MASTER_COLS)
 
 
+_N_C, _N_H = 16, 3 * 5 + 27 + 10  # controller and hand columns
+_NAN_C, _NAN_H = (np.nan,) * _N_C, (np.nan,) * _N_H
+
+
 class _Recorder:
     """Collects rows (one per master tick) of the latest sample of each service.
 
-    The controller's and hand's rows are converted once per (sample, fresh) and copied into
-    every master row that holds them (the hand ticks at 40 Hz, the master at 1 kHz)."""
+    Rows are kept as tuples of Python floats and stacked into float64 arrays once, at the
+    end (:meth:`arrays`: the same values as writing each row into a preallocated array).
+    The controller's and hand's rows are built once per (sample, fresh) and shared by every
+    master row that holds them (the hand ticks at 40 Hz, the master at 1 kHz)."""
 
-    def __init__(self, n: int) -> None:
+    def __init__(self) -> None:
         self.n = 0
-        self.m = np.full((n, len(_MASTER_COLS)), np.nan)
-        self.c = np.full((n, 16), np.nan)
-        self.h = np.full((n, 3 * 5 + 27 + 10), np.nan)
-        self.audit = np.full((n, 4), np.nan)
+        self._m: list[tuple[float, ...]] = []
+        self._c: list[tuple[float, ...]] = []
+        self._h: list[tuple[float, ...]] = []
+        self._audit: list[tuple[float, float, float, float]] = []
         self._c_key: tuple[object, bool] | None = None
         self._h_key: tuple[object, bool] | None = None
-        self._c_row = self._h_row = np.empty(0)
+        self._c_row: tuple[float, ...] = _NAN_C
+        self._h_row: tuple[float, ...] = _NAN_H
 
     def row(self, m: MasterSample, c: ControllerSample | None, h: HandSample | None,
             c_fresh: bool, h_fresh: bool, audit: tuple[float, float, float, float]) -> None:
-        i = self.n
-        self.audit[i] = audit
-        self.m[i] = _master_row(m)
-        if c is not None:
-            if self._c_key is None or self._c_key[0] is not c or self._c_key[1] != c_fresh:
-                self._c_key, self._c_row = (c, c_fresh), np.array(
-                    [*c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
-                     c.sent_j, c.received_j, c.dissipated_j,
-                     c.master_delay_s if c_fresh else np.nan,
-                     c.hand_delay_s if c_fresh else np.nan, c.master_dropped,
-                     c.hand_dropped, 0.0], dtype=np.float64)
-            self.c[i] = self._c_row
-        if h is not None:
-            if self._h_key is None or self._h_key[0] is not h or self._h_key[1] != h_fresh:
-                self._h_key, self._h_row = (h, h_fresh), np.array(
-                    [*h.setpoint_rad, *h.proximal_angle_rad, *h.distal_angle_rad,
-                     *h.motor_angle_rad, *h.setpoint_desired_rad, *h.pressure, h.tank_j,
-                     h.port_in_j, h.port_out_j, h.sent_j, h.received_j, h.dissipated_j,
-                     h.delay_s if h_fresh else np.nan, h.dropped, h.limit_count, 0.0],
-                    dtype=np.float64)
-            self.h[i] = self._h_row
+        self._audit.append(audit)
+        self._m.append(_master_row(m))
+        if c is None:
+            self._c.append(_NAN_C)
+        else:
+            key = self._c_key
+            if key is None or key[0] is not c or key[1] != c_fresh:
+                self._c_key, self._c_row = (c, c_fresh), (
+                    *c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
+                    c.sent_j, c.received_j, c.dissipated_j,
+                    c.master_delay_s if c_fresh else np.nan,
+                    c.hand_delay_s if c_fresh else np.nan, c.master_dropped,
+                    c.hand_dropped, 0.0)
+            self._c.append(self._c_row)
+        if h is None:
+            self._h.append(_NAN_H)
+        else:
+            key = self._h_key
+            if key is None or key[0] is not h or key[1] != h_fresh:
+                self._h_key, self._h_row = (h, h_fresh), (
+                    *h.setpoint_rad, *h.proximal_angle_rad, *h.distal_angle_rad,
+                    *h.motor_angle_rad, *h.setpoint_desired_rad, *h.pressure, h.tank_j,
+                    h.port_in_j, h.port_out_j, h.sent_j, h.received_j, h.dissipated_j,
+                    h.delay_s if h_fresh else np.nan, h.dropped, h.limit_count, 0.0)
+            self._h.append(self._h_row)
         self.n += 1
+
+    def arrays(self) -> tuple[Array, Array, Array, Array]:
+        """(master, controller, hand, audit) rows as float64 arrays, one row per master tick."""
+        def stack(rows: list[tuple[float, ...]], width: int) -> Array:
+            return np.array(rows, dtype=np.float64).reshape(len(rows), width)
+        return (stack(self._m, len(_MASTER_COLS)), stack(self._c, _N_C),
+                stack(self._h, _N_H), stack(self._audit, 4))  # type: ignore[arg-type]
 
 
 def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = None,
@@ -304,7 +322,7 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     periods = [1.0 / s.rate_hz for s in services]
     ticks = [0, 0, 0]
     n_master = int(np.floor(duration_s * m_svc.rate_hz + 1e-9)) + 1
-    rows = _Recorder(n_master)
+    rows = _Recorder()
     last_c: ControllerSample | None = None
     last_h: HandSample | None = None
     for s in services:
@@ -357,8 +375,7 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
 
 def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: MasterService,
             c_svc: ControllerService, h_svc: HandService) -> LockstepResult:
-    n = rows.n
-    M, C, H = rows.m[:n], rows.c[:n], rows.h[:n]  # noqa: N806
+    M, C, H, audit = rows.arrays()  # noqa: N806
     mc = {k: M[:, j] for j, k in enumerate(_MASTER_COLS)}
     hp = 15
     initial = sum(s.ledger.initial_j for s in (m_svc, c_svc, h_svc) if s.ledger is not None)
@@ -390,9 +407,8 @@ def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: Master
         dropped_hand_command=fill(H[:, hp + 34]), dropped_hand_state=fill(C[:, 14]),
         master_limited_count=mc["limit_count"], hand_limited_count=fill(H[:, hp + 35]),
         watchdog_trips=m_svc.wd.trips + c_svc.wd.trips + h_svc.wd.trips,
-        audit_operator_delivered_j=rows.audit[:n, 0], audit_operator_taken_j=rows.audit[:n, 1],
-        audit_environment_delivered_j=rows.audit[:n, 2],
-        audit_environment_taken_j=rows.audit[:n, 3],
+        audit_operator_delivered_j=audit[:, 0], audit_operator_taken_j=audit[:, 1],
+        audit_environment_delivered_j=audit[:, 2], audit_environment_taken_j=audit[:, 3],
         energy_scale=cfg.controller.tank.energy_scale,
         initial_master_j=m_svc.ledger.initial_j if m_svc.ledger is not None else 0.0,
         initial_hand_j=((h_svc.ledger.initial_j if h_svc.ledger is not None else 0.0)

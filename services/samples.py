@@ -11,9 +11,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from teleop.frozen import fast_init
+
 NAN = math.nan
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class MasterSample:
     """One master tick."""
@@ -41,6 +44,7 @@ class MasterSample:
     model_phase: float = 0.0  # share of the received contact model rendered (0: none)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class ControllerSample:
     """One controller tick."""
@@ -66,6 +70,7 @@ class ControllerSample:
     hand_servo_fault_trips: float = 0.0  # the hand's servo-error safe-state episodes (HandState)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandSample:
     """One hand tick."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from teleop.config import TeleopConfig
+from teleop.frozen import fast_init
 
 
 @dataclass(frozen=True, slots=True)
@@ -26,6 +27,7 @@ class WatchdogParams:
     enabled: bool = True
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class WatchdogState:
     """Time of the last valid message, whether tripped, the gain, and trips so far."""

@@ -24,6 +24,7 @@ from sim.finger import (
     initial_finger_state,
 )
 from teleop.effects import EffectSet
+from teleop.frozen import fast_init
 
 N_FINGERS = 3
 PRESHAPE_RATIO = 1.5
@@ -46,6 +47,7 @@ def default_hand_params(finger: FingerParams | None = None) -> HandParams:
     return HandParams(finger=finger or default_finger_params())
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandMotorCommand:
     """Commands for the three finger motors and the preshape joint goal (joint rad)."""
@@ -54,6 +56,7 @@ class HandMotorCommand:
     preshape_goal_rad: float = 0.0
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandSimState:
     """The explicit state of the hand."""
@@ -64,6 +67,7 @@ class HandSimState:
     preshape_vel_rad_s: float
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandOutputs:
     """Measurements of the hand."""

@@ -18,10 +18,12 @@ from dataclasses import dataclass
 
 from sim.params import FingerParams
 from teleop.effects import EffectSet
+from teleop.frozen import fast_init
 
 MODES = ("position", "force", "velocity")
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class MotorCommand:
     """A command to one finger motor.

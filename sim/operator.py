@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 from teleop.config.master import MasterConfig
 from teleop.devices.base import MasterReading
+from teleop.frozen import fast_init
 
 #: style -> (stiffness N/m, damping N s/m) of the operator's finger
 STYLES: dict[str, tuple[float, float]] = {
@@ -50,6 +51,7 @@ class OperatorParams:
     repeat: bool
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class OperatorState:
     """Trigger closing ``x_m`` (0 = open) and its rate; ``t_s`` the model time.

@@ -12,8 +12,10 @@ from sim.contact import ContactObject, sensor_pressures
 from sim.params import JOINT_RATIO, FingerParams
 from sim.state import FingerState
 from teleop.effects import EffectSet
+from teleop.frozen import fast_init
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class FingerOutputs:
     """What can be measured or drawn of a finger state (angles with any sensor offset)."""

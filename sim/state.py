@@ -6,8 +6,10 @@ from dataclasses import dataclass
 
 from sim.motor import HOLD_ZERO, MotorCommand
 from sim.params import FingerParams
+from teleop.frozen import fast_init
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class FingerState:
     """The explicit state of one finger (true physical values, SI).

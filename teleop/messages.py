@@ -19,6 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import IntEnum
 
+from teleop.frozen import fast_init
+
 SCHEMA_VERSION = 4  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: contact models;
 #                    4: servo_fault_trips, servo_safe in HandState
 #: a contact model per finger travels as ``(contact_rad, stiffness)`` pairs, fingers 1-3
@@ -43,6 +45,7 @@ class HandMode(IntEnum):
     SAFE = 3      # hold (or open, per config) and ignore set-points
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class Header:
     """Fields every message carries."""
@@ -53,6 +56,7 @@ class Header:
     version: int = SCHEMA_VERSION
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class MasterState:
     """Master -> controller: the grasp trigger's opening and its rate (0 = open)."""
@@ -68,6 +72,7 @@ class MasterState:
     echo_held_s: float = 0.0
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class ForceCommand:
     """Controller -> master: the force the trigger should display (positive resists closing)."""
@@ -80,6 +85,7 @@ class ForceCommand:
     model: tuple[float, ...] = NO_MODEL
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandCommand:
     """Controller -> hand: finger set-points, preshape and mode."""
@@ -91,6 +97,7 @@ class HandCommand:
     finger_force_units: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class FingerState:
     """One finger's measured state."""
@@ -103,6 +110,7 @@ class FingerState:
     contact: tuple[bool, ...]  # N_PRESSURE flags: pressure above the contact threshold
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandState:
     """Hand -> controller: the state of every finger and the preshape joint."""

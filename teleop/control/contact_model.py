@@ -46,8 +46,10 @@ import math
 from dataclasses import dataclass, replace
 
 from teleop.config.control import ContactModelConfig
+from teleop.frozen import fast_init
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class FingerModel:
     """One finger's estimate and its sufficient statistics."""

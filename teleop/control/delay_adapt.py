@@ -57,6 +57,7 @@ from teleop.control.stability_limit import (
     loop_params_from_config,
     predicted_max_stable_delay_s,
 )
+from teleop.frozen import fast_init
 from teleop.messages import HandState, MasterState
 
 #: The critical-gain table spans kappa_0 (+1e-5 of the range) .. KAPPA_TOP.
@@ -87,6 +88,7 @@ DROP_DEADBAND = 0.1
 INTERVAL_TAU_S = 2.0
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class LegState:
     """One leg's latest message (its ``t_s``), echo age at arrival, arrival time, and the
@@ -98,6 +100,7 @@ class LegState:
     interval_s: float = math.nan
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class DelayAdaptState:
     """Round-trip estimate (s; inf = unknown), its two max buckets, the gain in use (nan =

@@ -13,7 +13,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from teleop.frozen import fast_init
 
+
+@fast_init
 @dataclass(frozen=True, slots=True)
 class TotalReceiver:
     """The largest cumulative total seen so far on one incoming link."""
@@ -31,6 +34,7 @@ def receive_total(rx: TotalReceiver, total_j: float | None) -> tuple[TotalReceiv
     return TotalReceiver(seen_j=total_j), total_j - rx.seen_j
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class EnergyLedger:
     """Cumulative energy accounts of one side (all non-negative, all monotone except tank_j).

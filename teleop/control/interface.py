@@ -33,6 +33,7 @@ from teleop.config.control import ContactModelConfig, ControllerConfig
 from teleop.control.delay_adapt import DelayAdaptParams, delay_adapt_params
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.object_port import TactileModel
+from teleop.frozen import fast_init
 from teleop.messages import NO_MODEL, ForceCommand, HandCommand, Header, MasterState
 
 
@@ -114,6 +115,7 @@ def control_params(cfg: ControllerConfig) -> ControlParams:
                        and tr.map_exponent == 1.0 else None))
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class MasterOutput:
     """What the master side does this sample."""
@@ -141,6 +143,7 @@ def master_message(out: MasterOutput, seq: int, t_s: float, echo_t_s: float = -1
                        echo_held_s=max(echo_held_s, 0.0))
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class ControllerOutput:
     """The two commands the controller sends this cycle, and its accounts."""
@@ -154,6 +157,7 @@ class ControllerOutput:
     round_trip_s: float = float("nan")  # round trip that gain is scheduled on (nan: none)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandOutput:
     """What the hand side does this sample."""

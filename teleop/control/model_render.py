@@ -44,12 +44,14 @@ from dataclasses import dataclass
 
 from teleop.control.interface import ControlParams
 from teleop.control.transparency_layer import grip_to_setpoints
+from teleop.frozen import fast_init
 
 Triple = tuple[float, float, float]
 _ENVELOPE_STEPS = 24
 _ALPHAS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125, 0.015625)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class RenderState:
     """The model being rendered, per finger, and the share of the received one it has."""
@@ -68,7 +70,11 @@ def setpoint_rad(p: ControlParams, q_m: float) -> float:
     """The set-point every enabled finger gets at trigger closing ``q_m`` (the open angle
     when none is enabled)."""
     th = grip_to_setpoints(q_m, p)
-    return next((th[i] for i in range(3) if p.finger_enable[i]), p.open_angle_rad)
+    on = p.finger_enable
+    for i in range(3):
+        if on[i]:
+            return th[i]
+    return p.open_angle_rad
 
 
 def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
@@ -168,19 +174,25 @@ def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m:
                 cut: bool = False) -> RenderState:
     """Move the rendered model towards ``model`` (wire form, see module docstring); ``cut``:
     the link is cut (a watchdog zeroed the command), a withdrawn model goes at once."""
-    k_t = tuple(max(model[2 * i + 1], 0.0) for i in range(3))
+    # (the per-finger expressions written out for the three fingers: same operations)
+    k_t = (max(model[1], 0.0), max(model[3], 0.0), max(model[5], 0.0))
+    k0, k1, k2 = k_t
+    rc0, rc1, rc2 = r.contact_rad
+    rk0, rk1, rk2 = r.stiffness_n_per_rad
     # a finger with no received model keeps its contact angle while its stiffness ramps out
-    c_t = tuple(model[2 * i] if k_t[i] > 0.0 else r.contact_rad[i] for i in range(3))
+    c_t = (model[0] if k0 > 0.0 else rc0, model[2] if k1 > 0.0 else rc1,
+           model[4] if k2 > 0.0 else rc2)
     # a finger rendering nothing takes the new contact angle at once; with the link cut a
     # withdrawn model goes at once
-    r0 = RenderState(contact_rad=tuple(c_t[i] if r.stiffness_n_per_rad[i] == 0.0  # type: ignore[arg-type]
-                                       else r.contact_rad[i] for i in range(3)),
-                     stiffness_n_per_rad=tuple(0.0 if cut and k_t[i] == 0.0 else k  # type: ignore[arg-type]
-                                               for i, k in enumerate(r.stiffness_n_per_rad)))
+    c_r = (c_t[0] if rk0 == 0.0 else rc0, c_t[1] if rk1 == 0.0 else rc1,
+           c_t[2] if rk2 == 0.0 else rc2)
+    k_r = ((0.0 if k0 == 0.0 else rk0, 0.0 if k1 == 0.0 else rk1,
+            0.0 if k2 == 0.0 else rk2) if cut else (rk0, rk1, rk2))
     total = sum(k_t)
-    if r0.stiffness_n_per_rad == k_t and r0.contact_rad == c_t:  # nothing to phase in
-        return RenderState(contact_rad=r0.contact_rad, stiffness_n_per_rad=r0.stiffness_n_per_rad,
+    if k_r == k_t and c_r == c_t:  # nothing to phase in
+        return RenderState(contact_rad=c_r, stiffness_n_per_rad=k_r,
                            phase=1.0 if total > 0.0 else 0.0)
+    r0 = RenderState(contact_rad=c_r, stiffness_n_per_rad=k_r)
     f0, e0 = model_force_n(r0, p, q_m), model_energy_j(r0, p, q_m)
     full = _mix(r0, c_t, k_t, 1.0)  # type: ignore[arg-type]
     jump = abs(model_force_n(full, p, q_m) - f0)

@@ -41,8 +41,10 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
+from teleop.frozen import fast_init
 from teleop.messages import FingerState
 
 
@@ -68,6 +70,7 @@ class TactileModel:
     free_curl_rad: float = 0.45
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class PadTrack:
     """One finger's tracked contact: last angles, forces and positions."""
@@ -123,12 +126,13 @@ def contact_estimate(model: TactileModel, cells: tuple[float, ...], xs: tuple[fl
     strong = pad_m is not None and max(p) >= 4.0 * max(model.noise_floor, 1.0)
     table = _kernel_table(model, xs, *(pad_m if strong and pad_m is not None
                                        else (xs[0], xs[-1])))
-    rows = table
+    rows: Sequence[tuple[float, tuple[float, ...], float]] = table
     if near_m is not None and near_m > 0.0:
-        rows = tuple(r for r in table if abs(r[0] - near_m) <= TRACK_STEP_M + 1e-12) or table
+        reach = TRACK_STEP_M + 1e-12
+        rows = [r for r in table if abs(r[0] - near_m) <= reach] or table
     best = (-1.0, 0.0, 0.0)
     for x, ks, kk in rows:
-        pk = sum(a * b for a, b in zip(p, ks, strict=True))
+        pk = sum([a * b for a, b in zip(p, ks, strict=True)])
         score = pk * pk / kk  # |p|^2 minus the residual of the best fit at x
         if score > best[0]:
             best = (score, x, pk / kk)

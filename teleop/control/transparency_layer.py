@@ -20,11 +20,13 @@ from dataclasses import dataclass
 
 from teleop.control.interface import ControlParams
 from teleop.control.memo import last_result
+from teleop.frozen import fast_init
 from teleop.messages import FingerState
 
 Triple = tuple[float, float, float]
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class TransparencyState:
     """The displayed-force filter's state."""

@@ -68,6 +68,7 @@ from teleop.control.yield_guard import (
     step_yield,
     yield_charge_j,
 )
+from teleop.frozen import fast_init
 from teleop.messages import (
     NO_MODEL,
     FingerState,
@@ -83,6 +84,7 @@ Triple = tuple[float, float, float]
 
 
 # ----------------------------------------------------------------------------- master side
+@fast_init
 @dataclass(frozen=True, slots=True)
 class MasterPortState:
     """Master side: last position and held force, incoming total, accounts."""
@@ -156,6 +158,7 @@ def render_model(r: RenderState, p: ControlParams, command: ForceCommand | None,
 
 
 # ------------------------------------------------------------------------------ controller
+@fast_init
 @dataclass(frozen=True, slots=True)
 class ControllerStoreState:
     """Controller: incoming totals, energy store, sent totals per link, force filter."""
@@ -281,6 +284,7 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
 
 
 # ------------------------------------------------------------------------------- hand side
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandPortState:
     """Hand side: last measured motor angles and set-points, incoming total, accounts."""

@@ -10,9 +10,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+from teleop.frozen import fast_init
 from teleop.messages import FingerState, HandCommand
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class HandReading:
     """One read of the hand: every finger and the preshape joint."""
@@ -47,6 +49,7 @@ class HandBackend(Protocol):
         """Release the device (torque off for real servos)."""
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class MasterReading:
     """One read of the master device."""

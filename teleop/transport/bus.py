@@ -51,6 +51,7 @@ from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
 from teleop.config.transport import LinksConfig
+from teleop.frozen import fast_init
 from teleop.messages import Message
 from teleop.transport.delay_line import (
     DelayLineState,
@@ -80,6 +81,7 @@ REBASE_MAX_SEQ_GAP = 100_000
 SEQ_REBASE_MIN_S = 0.25
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class Received:
     """One message handed to the receiving service."""
@@ -221,7 +223,8 @@ class Inbox:
 
     def release(self, now_s: float) -> list[Received]:
         """Decode and return everything due at ``now_s``."""
-        return self._deliver(self._pop_due(now_s))
+        due = self._pop_due(now_s)
+        return self._deliver(due) if due else []
 
     def arrive_and_release(self, arrivals: Iterable[tuple[bytes, float]],
                            now_s: float) -> list[Received]:
@@ -243,29 +246,31 @@ class Inbox:
     def _deliver(self, due: list[Delivered]) -> list[Received]:
         out: list[Received] = []
         exact = self.spec.msg_type
+        decoder, signal, seq_jumps = self._decoder, self.signal, self._seq_jumps
         for d in due:
             p = d.payload
             if type(p) is exact:  # an in-process message the codec round-trips exactly
                 msg = p
-                self._decoder.accept()
+                decoder.accept()
             else:
-                msg = self._decoder.decode(p, exact)
+                msg = decoder.decode(p, exact)
                 if msg is None:
                     continue
             seq = msg.header.seq
             if self._drop_stale and self._last_seq is not None:
                 if seq <= self._last_seq:
-                    self._decoder.reject("stale_seq",
-                                         f"{self.signal} seq {seq} <= {self._last_seq}")
+                    decoder.reject("stale_seq", f"{signal} seq {seq} <= {self._last_seq}")
                     continue
-                if not self._check_seq_jump(msg, d.delivered_t_s):
+                if (self.seq_jump_max is not None  # (without a cap the check passes)
+                        and not self._check_seq_jump(msg, d.delivered_t_s)):
                     continue
             msg = self._check_energy(msg)
             if msg is None:
                 continue
             self._last_seq = seq
-            self._seq_jumps.clear()
-            out.append(Received(self.signal, msg, d.sent_t_s, d.delivered_t_s, d.delay_s))
+            if seq_jumps:
+                seq_jumps.clear()
+            out.append(Received(signal, msg, d.sent_t_s, d.delivered_t_s, d.delay_s))
         self._delivered += len(out)
         return out
 

@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass
 
 from teleop.config.transport import LinkConfig
+from teleop.frozen import fast_init
 
 PARETO_SHAPE = 2.5
 MAX_DELAY_S = 60.0  # cap on one sampled delay (the heavy tail is unbounded)
@@ -74,6 +75,7 @@ def delay_params(link: LinkConfig, forward: bool, salt: int = 0) -> DelayParams:
                        link.burst_length, link.duplicate, link.reorder, stream)
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class Pending:
     """A message in flight."""
@@ -85,6 +87,7 @@ class Pending:
     duplicate: bool
 
 
+@fast_init
 @dataclass(frozen=True, slots=True)
 class Delivered:
     """A message released by the delay line."""

@@ -90,11 +90,23 @@ def _header(h: object) -> bool:
             and type(e) is float and _E_LO <= e <= _E_HI)
 
 
+#: (model, stiffness range, verdict) of the last :func:`_model` check of a tuple: the
+#: controller forwards the same model tuple at every tick between two hand states, and a
+#: tuple (of floats, or it fails) cannot change, so its verdict is reused by identity
+_last_model: tuple[object, object, bool] = (None, None, False)
+
+
 def _model(v: object, stiffness: tuple[float, float]) -> bool:
+    global _last_model
     if type(v) is not tuple or len(v) != 2 * N_FINGERS:
         return False
-    return (_fs(v[0::2], N_FINGERS, FINGER_ANGLE_RANGE_RAD)
-            and _fs(v[1::2], N_FINGERS, stiffness))
+    last = _last_model
+    if v is last[0] and stiffness is last[1]:
+        return last[2]
+    ok = (_fs(v[0::2], N_FINGERS, FINGER_ANGLE_RANGE_RAD)
+          and _fs(v[1::2], N_FINGERS, stiffness))
+    _last_model = (v, stiffness, ok)
+    return ok
 
 
 def _finger(f: object) -> bool:

@@ -81,7 +81,14 @@ class FastLine:
         release, self.last_release_t_s = plain_release(params, t_s, self.last_release_t_s)
         entry = Pending(release, 2 * i, t_s, payload, False)  # type: ignore[arg-type]
         pending = self.pending
-        if not pending or _key(pending[-1]) <= _key(entry):
+        if not pending:
+            pending.append(entry)
+            return
+        last = pending[-1]
+        lt = last.release_t_s
+        # ``_key(last) <= _key(entry)`` for the usual case (two comparisons, no tuples);
+        # anything else (equal or unordered times) asks the tuples themselves
+        if lt < release or _key(last) <= _key(entry):
             pending.append(entry)
         else:
             ordered = list(pending)

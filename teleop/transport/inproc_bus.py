@@ -42,7 +42,7 @@ from teleop.transport.bus import (
 from teleop.transport.clock import Clock
 from teleop.transport.codec import KINDS, encode
 from teleop.transport.exact import round_trips
-from teleop.transport.keys import check_role, check_session, signal_spec
+from teleop.transport.keys import SIGNALS, check_role, check_session
 from teleop.transport.safe_decoder import SafeDecoder
 
 
@@ -112,7 +112,7 @@ class InProcessHub:
                     inbox.params = link_params(self.links, inbox.signal)
 
     def _deliver(self, signal: str, payload: bytes | Message, t_s: float) -> None:
-        spec = signal_spec(signal)
+        spec = SIGNALS[signal]  # a known signal: publish checked it
         if spec.link in self._cut:
             self.cut_dropped += 1
             return
@@ -143,19 +143,25 @@ class InProcessBus:
     def publish(self, signal: str, msg: Message) -> None:
         """Put ``msg`` on its link at the hub clock's time: as the object when the codec
         round-trips it exactly, else encoded (see the module docstring)."""
-        check_publish(self.role, signal, msg)
+        spec = SIGNALS.get(signal)
+        if spec is None or spec.sender != self.role or type(msg) is not spec.msg_type:
+            check_publish(self.role, signal, msg)  # raises: a programming error
         if self._closed:
             return
-        self._hub._deliver(signal, msg if round_trips(msg) else encode(msg),
-                           self._hub.clock.now_s())
+        hub = self._hub
+        hub._deliver(signal, msg if round_trips(msg) else encode(msg), hub.clock.now_s())
 
     def receive(self, signal: str) -> list[Received]:
         """Messages on ``signal`` due at the hub clock's time."""
-        inbox = check_receive(self.role, self._inboxes, signal)
+        inbox = self._inboxes.get(signal)
+        if inbox is None:
+            inbox = check_receive(self.role, self._inboxes, signal)  # raises
         return inbox.release(self._hub.clock.now_s())
 
     def alive(self, role: str) -> bool:
         """Whether ``role`` has a live view on the hub."""
+        if role in self._hub._views:  # a live view's role is a checked one
+            return True
         return self._hub._is_alive(check_role(role))
 
     def stats(self) -> BusStats:
