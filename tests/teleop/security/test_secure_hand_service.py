@@ -116,5 +116,8 @@ def test_hand_service_runs_on_its_own_files_only(tmp_path: Path) -> None:
 def test_control_without_security_the_intruder_moves_the_hand(tmp_path: Path) -> None:
     # the intruder starts at seq 1 like a fresh controller, so its energy total is credited
     figures, _ = _run_hand(tmp_path, False, [{"role": "master", "first_seq": 1}])
-    assert figures["desired_max_rad"] == pytest.approx(float(INTRUDER_ANGLE))
+    # the intruder's angle is approached at the servo's 4 rad/s: how close it gets within the
+    # hand's 3 s depends on when the intruder's process is up (a loaded CI run of c8910d5 got
+    # to 2.375); far from the secure runs' < 0.05 either way, never beyond the angle sent
+    assert 1.0 < figures["desired_max_rad"] <= float(INTRUDER_ANGLE) + 1e-9
     assert figures["proximal_max_rad"] > 0.05
