@@ -68,6 +68,8 @@ def step_stall(prev: StallTrack, motor_rad: float, proximal_rad: float, force_n:
         return StallTrack(motor_rad, proximal_rad, seen, stalled, prev.stall_motor_rad)
     span = motor_rad - a
     if span < window_rad:
+        if stalled == prev.stalled and (prev.seen or not seen):
+            return prev  # nothing changed within the chord (most samples)
         return StallTrack(a, prev.anchor_proximal_rad, prev.seen or seen, stalled,
                           prev.stall_motor_rad)
     flat = (proximal_rad - prev.anchor_proximal_rad) < ratio * span
