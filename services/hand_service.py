@@ -155,7 +155,8 @@ class HandService:
                         energy_total_j=total)
         pre = cmd.preshape_rad if cmd is not None else self.cfg.controller.transparency.preshape_rad
         return HandCommand(header=header, finger_setpoint_rad=sp,  # type: ignore[arg-type]
-                           preshape_rad=pre, mode=HandMode.POSITION)
+                           preshape_rad=pre, mode=HandMode.POSITION,
+                           hand_echo_t_s=cmd.hand_echo_t_s if cmd is not None else -1.0)
 
     def _held_s(self, t_s: float) -> float:
         """How long the held command has been held (0 before the first)."""
@@ -192,7 +193,7 @@ class HandService:
             self.events.append(f"hand fault: {fault}")
         cmd = self._effective_command(reading)
         self.state, out = self.suite.step_hand(self.state, self.params, reading.fingers, cmd,
-                                               self.dt_s)
+                                               self.dt_s, t_s)
         if self.wd.gain >= 1.0:
             self.hold_rad = None
         elif self.hold_rad is None or self.wd.tripped:

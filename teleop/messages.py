@@ -21,8 +21,8 @@ from enum import IntEnum
 
 from teleop.frozen import fast_init
 
-SCHEMA_VERSION = 4  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: contact models;
-#                    4: servo_fault_trips, servo_safe in HandState
+SCHEMA_VERSION = 5  # 2: echo_t_s, echo_held_s in MasterState and HandState; 3: contact models;
+#                    4: servo_fault_trips, servo_safe in HandState; 5: hand_echo_t_s in HandCommand
 #: a contact model per finger travels as ``(contact_rad, stiffness)`` pairs, fingers 1-3
 #: flattened; stiffness 0 = no model for that finger
 NO_MODEL = (0.0,) * 6
@@ -95,6 +95,9 @@ class HandCommand:
     preshape_rad: float
     mode: HandMode = HandMode.POSITION
     finger_force_units: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: ``t_s`` of the latest HandState the controller had when it computed this command (the
+    #: hand's clock; negative = none): the hand knows which of its touches the command saw
+    hand_echo_t_s: float = -1.0
 
 
 @fast_init

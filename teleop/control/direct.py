@@ -10,6 +10,8 @@ unstable with delay against a stiff contact (see :mod:`teleop.control.stability_
 
 from __future__ import annotations
 
+import math
+
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.energy_tank import port_work_j, split_work
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
@@ -76,7 +78,8 @@ def init_hand(p: ControlParams) -> HandPortState:
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
-              command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
+              command: HandCommand | None, dt_s: float,
+              t_s: float = math.nan) -> tuple[HandPortState, HandOutput]:
     """Pass the commanded set-points through; account the modelled port energy."""
     x, y_prev, d_j = sample_hand_port(s, p, fingers, dt_s)
     k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm

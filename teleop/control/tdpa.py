@@ -21,6 +21,8 @@ capped at ``tank.max_j`` (the excess is dissipated): the observed energy cannot 
 
 from __future__ import annotations
 
+import math
+
 from teleop.control.energy_channel import EnergyLedger, receive_total
 from teleop.control.energy_tank import (
     cap_tank,
@@ -110,7 +112,8 @@ def init_hand(p: ControlParams) -> HandPortState:
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
-              command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
+              command: HandCommand | None, dt_s: float,
+              t_s: float = math.nan) -> tuple[HandPortState, HandOutput]:
     """Passivity observer + set-point modulation at the hand port."""
     x, y_prev, d_j = sample_hand_port(s, p, fingers, dt_s)
     k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm

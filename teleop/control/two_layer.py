@@ -54,6 +54,7 @@ from teleop.control.passivity_layer import (
     spring_energy_j,
 )
 from teleop.control.stall_guard import FREE, StallTrack, step_stall
+from teleop.control.touch_cap import NO_TOUCH, hand_touch_cap, touch_since, unseen_touch_cap
 from teleop.control.transparency_layer import (
     TransparencyState,
     clip,
@@ -212,40 +213,17 @@ def forward_model(p: ControlParams, hand: HandState | None) -> tuple[float, ...]
     return tuple(out)
 
 
-def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
-                     master: MasterState | None, setpoints: Triple,
-                     t_s: float) -> tuple[Triple, Triple]:
-    """Model-mediated rendering: a finger's new touch is not squeezed deeper than the master
-    can have displayed.  Until the master echoes a command that carried the touch's model
-    (``MasterState.echo_t_s >= since``), the finger's set-point is capped where the model
-    renders the trigger's largest force, ``contact + force_max_n / k``: at zero delay the
-    echo comes back within a few ms; under delay the operator, who closed on nothing he
-    could feel, does not drive the hand through the object meanwhile.  Returns (``since``,
-    set-points)."""
-    echo = master.echo_t_s if master is not None else -1.0
-    new_since, out = [], []
-    for i in range(3):
-        c, k = model[2 * i], model[2 * i + 1]
-        if k <= 0.0:
-            new_since.append(math.nan)
-            out.append(setpoints[i])
-            continue
-        t0 = since[i] if math.isfinite(since[i]) else t_s
-        new_since.append(t0)
-        seen = echo >= t0
-        out.append(setpoints[i] if seen else min(setpoints[i], c + p.force_max_n / k))
-    return tuple(new_since), tuple(out)  # type: ignore[return-value]
-
-
 def make_commands(p: ControlParams, seq: int, t_s: float, force_n: float, to_master_j: float,
-                  setpoints: Triple, to_hand_j: float,
-                  model: tuple[float, ...] = NO_MODEL) -> tuple[ForceCommand, HandCommand]:
-    """The two outgoing messages with their running energy totals."""
+                  setpoints: Triple, to_hand_j: float, model: tuple[float, ...] = NO_MODEL,
+                  hand: HandState | None = None) -> tuple[ForceCommand, HandCommand]:
+    """The two outgoing messages with their running energy totals; ``hand``: the hand state
+    the commands were computed from (its time is echoed to the hand)."""
     fc = ForceCommand(header=Header(seq=seq, t_s=t_s, energy_total_j=to_master_j),
                       force_n=force_n, model=model)
     hc = HandCommand(header=Header(seq=seq, t_s=t_s, energy_total_j=to_hand_j),
                      finger_setpoint_rad=setpoints, preshape_rad=p.preshape_rad,
-                     mode=HandMode.POSITION)
+                     mode=HandMode.POSITION,
+                     hand_echo_t_s=hand.header.t_s if hand is not None else -1.0)
     return fc, hc
 
 
@@ -274,7 +252,7 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     sent_m, sent_h = s.sent_to_master_j + to_m, s.sent_to_hand_j + to_h
     model = forward_model(p, hand)
     since, sp = unseen_touch_cap(s.model_since, p, model, master, sp, t_s)
-    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h, model)
+    fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h, model, hand)
     ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
                               sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt,
                               model_since=since)
@@ -300,6 +278,9 @@ class HandPortState:
     models: tuple[FingerModel, ...] | None = None  # contact model per finger (rendering on)
     yields: tuple[YieldTrack, ...] = (NO_CONTACT, NO_CONTACT, NO_CONTACT)  # yield guard
     stalls: tuple[StallTrack, ...] = (FREE, FREE, FREE)  # unseen-contact guard
+    #: per finger: hand time its contact model became valid (nan: none), for the hand's
+    #: touch cap (:func:`teleop.control.touch_cap.hand_touch_cap`)
+    touch_since: Triple = NO_TOUCH
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -454,20 +435,26 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
-              command: HandCommand | None, dt_s: float) -> tuple[HandPortState, HandOutput]:
-    """One hand-side sample: the passivity layer (:func:`step_hand_object`, or
-    :func:`step_hand_servo` for ``hand_port = "servo"``), then the contact models
-    (:mod:`teleop.control.contact_model`) on the set-point that was in force over the sample,
-    the measured motor angles and peak pressures."""
+              command: HandCommand | None, dt_s: float,
+              t_s: float = math.nan) -> tuple[HandPortState, HandOutput]:
+    """One hand-side sample at hand time ``t_s``: the hand's touch cap
+    (:func:`~teleop.control.touch_cap.hand_touch_cap`; off without a finite ``t_s``), the
+    passivity layer (:func:`step_hand_object`, or :func:`step_hand_servo` for ``hand_port =
+    "servo"``), then the contact models (:mod:`teleop.control.contact_model`) on the set-point
+    that was in force over the sample, the measured motor angles and peak pressures."""
     step = step_hand_object if p.hand_port == "object" else step_hand_servo
+    if p.contact_model is not None:
+        command = hand_touch_cap(p, s.models, s.touch_since, command)
     ns, out = step(s, p, fingers, command, dt_s)
     if p.contact_model is None or s.setpoint_prev is None:
         return ns, out
     assert ns.x_prev is not None  # both layers keep this sample's measured motor angles
     models = step_models(s.models, p.contact_model, s.setpoint_prev, ns.x_prev,
                          max_pressures(fingers, p), dt_s)
-    return replace(ns, models=models), replace(out, contact_model=model_wire(models),
-                                               model_fallbacks=sum(m.fallbacks for m in models))
+    since = touch_since(s.touch_since, models, t_s)
+    return (replace(ns, models=models, touch_since=since),
+            replace(out, contact_model=model_wire(models),
+                    model_fallbacks=sum(m.fallbacks for m in models)))
 
 
 def step_hand_servo(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],

@@ -60,7 +60,7 @@ SEQ_MAX = 2**63 - 1
 
 KINDS: dict[type, int] = {MasterState: 1, ForceCommand: 2, HandCommand: 3, HandState: 4}
 _TYPE_OF_KIND = {v: k for k, v in KINDS.items()}
-_N_FIELDS = {MasterState: 4, ForceCommand: 2, HandCommand: 4, HandState: 7}
+_N_FIELDS = {MasterState: 4, ForceCommand: 2, HandCommand: 5, HandState: 7}
 _HEAD = 5  # kind, version, seq, t_s, energy_total_j
 _FINGER_FIELDS = 6
 
@@ -80,7 +80,8 @@ def _fields(msg: Message) -> list[Any]:
         return [float(msg.force_n), [float(x) for x in msg.model]]
     if isinstance(msg, HandCommand):
         return [[float(x) for x in msg.finger_setpoint_rad], float(msg.preshape_rad),
-                int(msg.mode), [float(x) for x in msg.finger_force_units]]
+                int(msg.mode), [float(x) for x in msg.finger_force_units],
+                float(msg.hand_echo_t_s)]
     if isinstance(msg, HandState):
         return [[_finger_to_wire(f) for f in msg.fingers], float(msg.preshape_rad),
                 float(msg.echo_t_s), float(msg.echo_held_s),
@@ -197,7 +198,8 @@ def _body(cls: type, h: Header, b: list[Any]) -> Message:
         sp = _nums(b[0], "finger_setpoint_rad", N_FINGERS, FINGER_ANGLE_RANGE_RAD)
         fu = _nums(b[3], "finger_force_units", N_FINGERS, FORCE_UNITS_RANGE)
         return HandCommand(h, sp, _num(b[1], "preshape_rad", *PRESHAPE_RANGE_RAD),  # type: ignore[arg-type]
-                           HandMode(mode), fu)  # type: ignore[arg-type]
+                           HandMode(mode), fu,  # type: ignore[arg-type]
+                           _num(b[4], "hand_echo_t_s", *ECHO_RANGE_S))
     fingers = _list(b[0], "fingers", N_FINGERS)
     return HandState(h, tuple(_finger(f, f"fingers[{i}]") for i, f in enumerate(fingers)),  # type: ignore[arg-type]
                      _num(b[1], "preshape_rad", *PRESHAPE_RANGE_RAD),

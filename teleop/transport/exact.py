@@ -133,7 +133,8 @@ def round_trips(msg: Message) -> bool:
         return (_header(msg.header)
                 and _fs(msg.finger_setpoint_rad, N_FINGERS, FINGER_ANGLE_RANGE_RAD)
                 and _f(msg.preshape_rad, PRESHAPE_RANGE_RAD) and type(msg.mode) is HandMode
-                and _fs(msg.finger_force_units, N_FINGERS, FORCE_UNITS_RANGE))
+                and _fs(msg.finger_force_units, N_FINGERS, FORCE_UNITS_RANGE)
+                and _f(msg.hand_echo_t_s, ECHO_RANGE_S))
     if t is HandState:
         fingers = msg.fingers
         return (_header(msg.header) and type(fingers) is tuple and len(fingers) == N_FINGERS

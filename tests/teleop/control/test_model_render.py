@@ -7,7 +7,6 @@ the controller's ledger."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import pytest
@@ -159,29 +158,3 @@ def test_a_dropped_estimate_hands_over_to_the_delayed_force_without_a_step() -> 
     # the same command zeroed by a watchdog: the force goes at once
     _, cut = two_layer.step_master(full, p, q, command((0.0,) * 6, force_n=0.0), DT)
     assert cut.force_n == 0.0
-
-
-def test_a_new_touch_is_capped_until_the_master_has_seen_its_model() -> None:
-    from teleop.messages import MasterState
-
-    def master(echo_t_s: float) -> MasterState:
-        return MasterState(header=Header(seq=1, t_s=0.0, energy_total_j=0.0),
-                           grip_position_m=0.02, grip_velocity_m_s=0.0, echo_t_s=echo_t_s)
-
-    sp = (2.0, 2.0, 0.1)
-    model = (0.4, 40.0, 0.4, 40.0, 0.0, 0.0)  # fingers 1, 2 touching; finger 3 not
-    cap = 0.4 + P.force_max_n / 40.0
-    since, out = two_layer.unseen_touch_cap((math.nan,) * 3, P, model, master(-1.0), sp, 5.0)
-    assert since[:2] == (5.0, 5.0) and math.isnan(since[2])
-    assert out == (cap, cap, 0.1)
-    # later, the master still echoes a command from before the model: still capped
-    since, out = two_layer.unseen_touch_cap(since, P, model, master(4.99), sp, 5.4)
-    assert since[:2] == (5.0, 5.0) and out[:2] == (cap, cap)
-    # it echoes the command that carried the model: the operator decides again
-    since, out = two_layer.unseen_touch_cap(since, P, model, master(5.0), sp, 5.5)
-    assert out == sp
-    # the touch ends (model withdrawn) and a new one starts: capped again until seen
-    since, _ = two_layer.unseen_touch_cap(since, P, (0.0,) * 6, master(5.5), sp, 6.0)
-    assert all(math.isnan(v) for v in since)
-    since, out = two_layer.unseen_touch_cap(since, P, model, master(6.0), sp, 6.1)
-    assert out[:2] == (cap, cap)

@@ -132,9 +132,17 @@ def _ms(**kw: float) -> bytes:
     (msgpack.packb([1, SCHEMA_VERSION, 0, 0.0, 0.0, "0.01", 0.0, -1.0, 0.0]), "bad_type"),
     (msgpack.packb([1, SCHEMA_VERSION, 0, 0.0, 0.0, True, 0.0, -1.0, 0.0]), "bad_type"),
     (msgpack.packb([1, SCHEMA_VERSION, 0, 0.0, 0.0, 0.0, 0.0]), "bad_shape"),
-    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0, 0.0], 0.0, 0, [0.0] * 3]), "bad_shape"),
-    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0] * 3, 0.0, 7, [0.0] * 3]), "out_of_range"),
-    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [9.0, 0.0, 0.0], 0.0, 0, [0.0] * 3]), "out_of_range"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0, 0.0], 0.0, 0, [0.0] * 3, -1.0]),
+     "bad_shape"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0] * 3, 0.0, 0, [0.0] * 3]), "bad_shape"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0] * 3, 0.0, 7, [0.0] * 3, -1.0]),
+     "out_of_range"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [9.0, 0.0, 0.0], 0.0, 0, [0.0] * 3, -1.0]),
+     "out_of_range"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0] * 3, 0.0, 0, [0.0] * 3, -2.0]),
+     "out_of_range"),
+    (msgpack.packb([3, SCHEMA_VERSION, 0, 0.0, 0.0, [0.0] * 3, 0.0, 0, [0.0] * 3, math.nan]),
+     "not_finite"),
 ])
 def test_bad_messages_have_stable_reasons(data: bytes, reason: str) -> None:
     with pytest.raises(DecodeError) as info:

@@ -1,0 +1,102 @@
+"""Model-mediated rendering's touch caps: a new touch is not squeezed deeper than the operator
+can have felt.
+
+Under delay the operator closes the trigger on nothing he can feel: the hand's contact model
+(:mod:`teleop.control.contact_model`) has to travel hand -> controller -> master before the
+trigger renders it.  Two caps hold a finger's new touch where the model renders the trigger's
+largest force, ``contact + force_max_n / k`` (``k`` in N of trigger force per rad of
+set-point), until the touch is known downstream:
+
+- :func:`unseen_touch_cap` (controller) until the master echoes a command that carried the
+  touch's model: the master link's round trip;
+- :func:`hand_touch_cap` (hand) until a command arrives that the controller computed from a
+  hand state that already had the touch (``HandCommand.hand_echo_t_s``): the hand link's round
+  trip, which the controller cannot cover because it does not know of the touch yet.
+
+Both are pure functions over explicit state; neither adds energy (a cap only lowers a
+set-point).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from teleop.control.contact_model import FingerModel
+from teleop.control.interface import ControlParams
+from teleop.messages import HandCommand, HandMode, MasterState
+
+Triple = tuple[float, float, float]
+NO_TOUCH: Triple = (math.nan, math.nan, math.nan)
+
+
+def touch_depth_rad(p: ControlParams, k_n_per_rad: float) -> float:
+    """How far beyond contact the trigger's largest force is rendered, for a model of
+    ``k_n_per_rad`` N of trigger force per rad of set-point."""
+    return p.force_max_n / k_n_per_rad
+
+
+def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
+                     master: MasterState | None, setpoints: Triple,
+                     t_s: float) -> tuple[Triple, Triple]:
+    """Controller side: until the master echoes a command that carried the touch's model
+    (``MasterState.echo_t_s >= since``), the finger's set-point is capped at ``contact +
+    force_max_n / k``: at zero delay the echo comes back within a few ms; under delay the
+    operator, who closed on nothing he could feel, does not drive the hand through the object
+    meanwhile.  ``model``: the forwarded models (N per rad).  Returns (``since``, set-points)."""
+    echo = master.echo_t_s if master is not None else -1.0
+    new_since, out = [], []
+    for i in range(3):
+        c, k = model[2 * i], model[2 * i + 1]
+        if k <= 0.0:
+            new_since.append(math.nan)
+            out.append(setpoints[i])
+            continue
+        t0 = since[i] if math.isfinite(since[i]) else t_s
+        new_since.append(t0)
+        seen = echo >= t0
+        out.append(setpoints[i] if seen else min(setpoints[i], c + touch_depth_rad(p, k)))
+    return tuple(new_since), tuple(out)  # type: ignore[return-value]
+
+
+def _valid(m: FingerModel | None) -> tuple[float, float] | None:
+    """``(contact_rad, k in pressure units per rad)`` of a valid model, else None."""
+    if m is None or not m.valid or not math.isfinite(m.stiffness):
+        return None
+    return m.contact_rad, m.stiffness
+
+
+def touch_since(since: Triple, models: tuple[FingerModel, ...] | None, t_s: float) -> Triple:
+    """Hand side: per finger, the hand time at which its current contact model became valid
+    (kept while it stays valid; nan without a model or without a hand time)."""
+    if models is None:
+        return NO_TOUCH
+    out = []
+    for i in range(3):
+        ok = i < len(models) and _valid(models[i]) is not None
+        out.append((since[i] if math.isfinite(since[i]) else t_s) if ok else math.nan)
+    return tuple(out)  # type: ignore[return-value]
+
+
+def hand_touch_cap(p: ControlParams, models: tuple[FingerModel, ...] | None, since: Triple,
+                   command: HandCommand | None) -> HandCommand | None:
+    """Hand side: ``command`` with each finger whose touch (valid since ``since``) the
+    controller had not yet seen when it computed the command (``hand_echo_t_s < since``)
+    capped at ``contact + force_max_n / k``; the same command when no cap binds."""
+    if (command is None or models is None or command.mode != HandMode.POSITION
+            or p.force_per_pressure_n <= 0.0):
+        return command
+    sp = list(command.finger_setpoint_rad)
+    bound = False
+    for i in range(min(3, len(models), len(sp))):
+        if not math.isfinite(since[i]) or command.hand_echo_t_s >= since[i]:
+            continue
+        m = _valid(models[i])
+        if m is None:
+            continue
+        cap = m[0] + touch_depth_rad(p, m[1] * p.force_per_pressure_n)
+        if sp[i] > cap:
+            sp[i], bound = cap, True
+    if not bound:
+        return command
+    return replace(command, finger_setpoint_rad=tuple(sp))

@@ -1,0 +1,44 @@
+"""The first touch under delay on the simulated hand, lockstep: with 1 s one way on both links
+the operator cannot feel the object for a 4 s round trip; the hand's touch cap
+(:func:`teleop.control.touch_cap.hand_touch_cap`) holds the blind first grasp where the
+trigger's largest force would be rendered, so it is no harder than the grasps the operator
+makes feeling the object.  Peak pressures are the simulated cells' readings of the contact
+the simulator computes, not a controller quantity."""
+
+from __future__ import annotations
+
+import pytest
+
+from services.lockstep import run_lockstep
+from teleop.analysis.sweep_endurance import grasps_from_columns
+from teleop.config import load_config
+from teleop.control import two_layer
+
+SLOW_LINKS = ("links.master_controller.delay_s=1.0", "links.controller_hand.delay_s=1.0")
+
+
+def peaks(seconds: float = 15.0) -> list[float]:
+    cfg = load_config(None, list(SLOW_LINKS))
+    r = run_lockstep(cfg, seconds, seed=1)
+    g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
+                            r.displayed_force_n, cfg)
+    return [s.peak_pressure for s in g.grasps]
+
+
+@pytest.mark.slow
+def test_the_blind_first_grasp_is_no_harder_than_the_felt_ones() -> None:
+    p = peaks()
+    assert len(p) >= 3
+    steady = p[2]
+    assert steady > 300.0  # a real grasp
+    assert all(v <= 1.1 * steady for v in p), p
+
+
+@pytest.mark.slow
+def test_without_the_hand_cap_the_first_grasp_is_squeezed_blind(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mutant kept as a test: only the controller's cap, which learns of the touch a hand
+    link's delay late, while the hand runs the set-points already on their way."""
+    monkeypatch.setattr(two_layer, "hand_touch_cap", lambda p, m, s, command: command)
+    p = peaks()
+    assert p[0] > 3.0 * p[2], p
