@@ -21,7 +21,7 @@ from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.analysis.sweep_objects import with_object
 from teleop.analysis.sweep_signals import signals_from_lockstep
 from teleop.config import TeleopConfig, load_config
-from tests.lockstep_pool import LockstepPool, lockstep
+from tests.job_pool import JobPool, lockstep
 
 #: the sweep's scenario: close to 60 % of the travel over 1 s, then hold
 HOLD = ["master.virtual.closed_fraction=0.6", "master.virtual.repeat=false",
@@ -47,7 +47,7 @@ def repeated_cfg(delay_s: float) -> TeleopConfig:
 
 
 @pytest.fixture(scope="module")
-def runs() -> Iterator[LockstepPool]:
+def runs() -> Iterator[JobPool]:
     """Every hook-free run of this module, started together on two processes (the same
     ``run_lockstep(cfg, seconds, seed=...)`` each test made itself, computed side by side;
     the two hooked runs below run here meanwhile)."""
@@ -60,11 +60,11 @@ def runs() -> Iterator[LockstepPool]:
                                            ("controller.contact_model.enabled=false",)),
                                    6.8, 3))
     jobs |= {("repeated", d): (lockstep, (repeated_cfg(d), 40.0, 2)) for d in (0.2, 1.0)}
-    with LockstepPool(jobs) as pool:
+    with JobPool(jobs) as pool:
         yield pool
 
 
-def _direct_hold_rad_at_zero_delay(runs: LockstepPool, obj: str) -> float:
+def _direct_hold_rad_at_zero_delay(runs: JobPool, obj: str) -> float:
     """Closure error in the steady hold of plain position-force control with no delay, the
     same operator and object: the servo's own squeeze, the floor any controller shares."""
     cfg = cfg_for(0.0, 0.0, obj, ("controller.kind=direct",))
@@ -72,7 +72,7 @@ def _direct_hold_rad_at_zero_delay(runs: LockstepPool, obj: str) -> float:
 
 
 @pytest.mark.parametrize("delay_s,loss,floor,obj", FELT)
-def test_the_steady_grasp_is_felt_across_delay(runs: LockstepPool, delay_s: float, loss: float,
+def test_the_steady_grasp_is_felt_across_delay(runs: JobPool, delay_s: float, loss: float,
                                                 floor: float, obj: str) -> None:
     cfg = cfg_for(delay_s, loss, obj)
     r = runs.result(("felt", delay_s, loss, obj))
@@ -91,7 +91,7 @@ def test_the_steady_grasp_is_felt_across_delay(runs: LockstepPool, delay_s: floa
     assert np.all(r.displayed_force_n[late] > 1.0)
 
 
-def test_without_the_model_the_grasp_is_not_felt_at_200_ms(runs: LockstepPool) -> None:
+def test_without_the_model_the_grasp_is_not_felt_at_200_ms(runs: JobPool) -> None:
     """The comparison the floors above are about: the delayed force alone, gain-scheduled."""
     cfg = cfg_for(0.2, 0.2, "stiff-cylinder", ("controller.contact_model.enabled=false",))
     r = runs.result("no-model")
@@ -139,7 +139,7 @@ def test_an_object_moved_mid_grasp_is_re_measured() -> None:
 
 @pytest.mark.parametrize("delay_s", [0.2, 1.0])
 def test_repeated_grasps_under_delay_and_loss_all_hold_up_against_the_first(
-        runs: LockstepPool, delay_s: float) -> None:
+        runs: JobPool, delay_s: float) -> None:
     """The virtual operator's repeated grasps (goal 1 of issue 13, short): with 20 % loss on
     both links every grasp reaches 90 % of the first's peak pressure and closure; the first
     no longer overshoots (the touch is capped until the master has seen its model)."""

@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from tests.lockstep_pool import LockstepPool
+from tests.job_pool import JobPool
 from tests.services.yield_grasp import first_grasp as grasp_run
 
 CRUSH = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0.333")
@@ -35,13 +35,13 @@ GRASPS = (CRUSH, (*CRUSH, "controller.tactile.yield_stiffness_ratio=0"), DEAD,
 
 
 @pytest.fixture(scope="module")
-def pool() -> Iterator[LockstepPool]:
-    with LockstepPool({o: (grasp_run, o) for o in GRASPS}) as p:
+def pool() -> Iterator[JobPool]:
+    with JobPool({o: (grasp_run, o) for o in GRASPS}) as p:
         yield p
 
 
 @pytest.fixture
-def first_grasp(pool: LockstepPool):
+def first_grasp(pool: JobPool):
     """``first_grasp(*overrides)``: the grasp's figures (``yield_grasp.first_grasp``), from
     the module's pool."""
     return lambda *overrides: pool.result(tuple(overrides))

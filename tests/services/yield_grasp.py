@@ -1,5 +1,5 @@
 """The first grasp of the yield-guard lockstep tests (a top-level function, so a test module can
-run its grasps on the tests' lockstep pool, ``tests/lockstep_pool.py``)."""
+run its grasps on the tests' lockstep pool, ``tests/job_pool.py``)."""
 
 from __future__ import annotations
 

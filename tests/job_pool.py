@@ -1,11 +1,12 @@
-"""A test module's independent lockstep runs, started together on a small spawn pool.
+"""A test module's independent long jobs (lockstep runs, diagnoses), started together on a
+small spawn pool.
 
 CI runs pytest in one process on a two-core machine, so a module whose tests each run their
-own lockstep runs, one after another, leaves a core idle.  :class:`LockstepPool` submits every
+own lockstep runs (or a batch of diagnoses), one after another, leaves a core idle.  :class:`JobPool` submits every
 run a module needs at once (in the order given: the order the tests ask for them, so the first
 tests start while later runs are computed) to ``workers`` spawned processes and hands each test
 its own run's result when it asks: the same call as in the test (a lockstep run is a pure
-function of its config and seed; ``tests/services/test_lockstep_pool.py`` holds a pooled run to
+function of its config and seed; ``tests/test_job_pool.py`` holds a pooled run to
 an in-process one bit for bit), only computed beside the others.  A job is a top-level
 function and its arguments, so it pickles; runs with hooks that close over test state stay in
 the test.
@@ -14,7 +15,7 @@ Usage (a module fixture)::
 
     @pytest.fixture(scope="module")
     def runs():
-        with LockstepPool({"a": (lockstep, (cfg, 6.0, 3))}) as pool:
+        with JobPool({"a": (lockstep, (cfg, 6.0, 3))}) as pool:
             yield pool
 
     def test_a(runs):
@@ -32,7 +33,7 @@ from typing import Any
 from services.lockstep import LockstepResult, run_lockstep
 from teleop.config import TeleopConfig
 
-__all__ = ["LockstepPool", "lockstep"]
+__all__ = ["JobPool", "lockstep"]
 
 Job = tuple[Callable[..., Any], tuple[Any, ...]]
 
@@ -42,7 +43,7 @@ def lockstep(cfg: TeleopConfig, seconds: float, seed: int) -> LockstepResult:
     return run_lockstep(cfg, seconds, seed=seed)
 
 
-class LockstepPool:
+class JobPool:
     """Jobs ``key -> (fn, args)`` run on ``workers`` spawned processes, started in the
     mapping's order; :meth:`result` waits for one.  With one core (or
     ``workers <= 1``) each job runs here, when its result is first asked for."""
@@ -73,7 +74,7 @@ class LockstepPool:
             self._ex.shutdown(cancel_futures=True)
             self._ex = None
 
-    def __enter__(self) -> LockstepPool:
+    def __enter__(self) -> JobPool:
         return self
 
     def __exit__(self, *exc: object) -> None:
