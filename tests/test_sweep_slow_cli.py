@@ -36,8 +36,10 @@ def test_reduced_grid_writes_rows_and_heatmaps(tmp_path: Path, capsys) -> None:
 
 def test_short_endurance_judges_every_grasp(tmp_path: Path) -> None:
     out = tmp_path / "e.json"
+    # --jobs 3: the three runs at once (on two cores the third no longer runs alone after
+    # the first two; the results do not depend on the number of jobs)
     assert main(["sweep", "--endurance", "--endurance-minutes", "1", "--controllers",
-                 "direct", "--no-progress", "--json", str(out)]) == 0
+                 "direct", "--jobs", "3", "--no-progress", "--json", str(out)]) == 0
     rows = {r["delay_s"]: r for r in json.loads(out.read_text())["runs"]}
     assert set(rows) == {0.0, 0.2, 1.0}
     for r in rows.values():

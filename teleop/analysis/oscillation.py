@@ -42,7 +42,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal as sps
 
 Array = NDArray[np.float64]
 
@@ -118,6 +117,9 @@ def highpass(x: Array, dt_s: float, cutoff_hz: float) -> Array:
     nyq = 0.5 / dt_s
     if cutoff_hz >= nyq or len(x) < 16:
         return x - np.mean(x)
+    from scipy import signal as sps  # here: scipy.signal takes 1-3 s to import, and the
+    # classifier needs it only without analysis segments (every spawned sweep worker imports this)
+
     sos = sps.butter(2, cutoff_hz / nyq, btype="highpass", output="sos")
     return np.asarray(sps.sosfiltfilt(sos, x, padtype="even"), dtype=float)
 

@@ -12,34 +12,44 @@ unseen-contact guard's case (:mod:`teleop.control.stall_guard`).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 import pytest
 
-from services.lockstep import run_lockstep
-from teleop.config import load_config
+from tests.job_pool import JobPool
+from tests.services.yield_grasp import first_grasp as grasp_run
 
 CRUSH = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0.333")
+DEAD = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0")
+GAINS = (0.001, 0.01, 0.03, 0.1)
+HARDENING = ("hand.sim.object.yield_force_n=5", "hand.sim.object.yield_hardening_n_per_m=2000",
+             "hand.sim.tactile_gain=0.333")
+
+#: every grasp this module judges (override tuples), run together on two processes
+GRASPS = (CRUSH, (*CRUSH, "controller.tactile.yield_stiffness_ratio=0"), DEAD,
+          (*DEAD, "controller.tactile.stall_window_rad=0"),
+          *(("hand.sim.tactile_gain=0", f"master.virtual.style={s}") for s in ("soft", "hard")),
+          *(("hand.sim.object.yield_force_n=5", f"hand.sim.tactile_gain={g}") for g in GAINS),
+          HARDENING)
 
 
-def first_grasp(*overrides: str) -> tuple[float, float, int, int]:
-    """(object net work J, hand ledger net charge J, most fingers flagged yielding, most
-    flagged stalled on an unseen contact) over the first grasp of the default script (5 s)."""
-    flagged = [0, 0]
+@pytest.fixture(scope="module")
+def pool() -> Iterator[JobPool]:
+    with JobPool({o: (grasp_run, o) for o in GRASPS}) as p:
+        yield p
 
-    def hook(_t: float, ctx: object) -> None:
-        hand = getattr(ctx, "hand", None)
-        flagged[0] = max(flagged[0], getattr(hand, "_yielding", 0))
-        flagged[1] = max(flagged[1], getattr(hand, "_unseen", 0))
 
-    r = run_lockstep(load_config(None, list(overrides)), 5.0, seed=1, hook=hook)
-    assert r.has_audit
-    obj = float(r.audit_environment_delivered_j[-1] - r.audit_environment_taken_j[-1])
-    paid = float(r.hand_port_out_j[-1] - r.hand_port_in_j[-1])
-    return obj, paid, flagged[0], flagged[1]
+@pytest.fixture
+def first_grasp(pool: JobPool):
+    """``first_grasp(*overrides)``: the grasp's figures (``yield_grasp.first_grasp``), from
+    the module's pool."""
+    return lambda *overrides: pool.result(tuple(overrides))
 
 
 @pytest.mark.slow
-def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pays() -> None:
+def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pays(
+        first_grasp) -> None:
     obj, paid, flagged, unseen = first_grasp(*CRUSH)
     assert obj > 0.1  # the pads did crush it
     assert flagged >= 1 and unseen == 0  # the cells see the contact, they read it low
@@ -47,7 +57,7 @@ def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pay
 
 
 @pytest.mark.slow
-def test_without_the_guard_the_tank_pays_less_than_the_object_took() -> None:
+def test_without_the_guard_the_tank_pays_less_than_the_object_took(first_grasp) -> None:
     """The mutant kept as a test: the guard off, the same grasp is charged a fraction of
     the work the object really took (the bound broken, silently)."""
     obj, paid, flagged, _ = first_grasp(*CRUSH, "controller.tactile.yield_stiffness_ratio=0")
@@ -55,11 +65,9 @@ def test_without_the_guard_the_tank_pays_less_than_the_object_took() -> None:
     assert np.isfinite(paid) and paid < 0.5 * obj
 
 
-DEAD = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0")
-
-
 @pytest.mark.slow
-def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays() -> None:
+def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays(
+        first_grasp) -> None:
     """Cells reading nothing: the fingers stall on the cylinder with silent cells, the
     unseen-contact guard flags them and charges their further advance at the servo's torque
     (measured 2026-11-26: object 0.30 J, tank paid 14.5 J, 3 fingers)."""
@@ -70,7 +78,7 @@ def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays() -> 
 
 
 @pytest.mark.slow
-def test_without_the_stall_guard_dead_cells_are_charged_nothing() -> None:
+def test_without_the_stall_guard_dead_cells_are_charged_nothing(first_grasp) -> None:
     """The mutant kept as a test: the guard off, the crushing grasp costs the tank nothing."""
     obj, paid, _, unseen = first_grasp(*DEAD, "controller.tactile.stall_window_rad=0")
     assert unseen == 0
@@ -79,7 +87,7 @@ def test_without_the_stall_guard_dead_cells_are_charged_nothing() -> None:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("style", ["soft", "hard"])
-def test_dead_cells_on_an_elastic_object_raise_the_alarm(style: str) -> None:
+def test_dead_cells_on_an_elastic_object_raise_the_alarm(first_grasp, style: str) -> None:
     """An elastic cylinder, every operator: the alarm comes whatever the object does (the
     operator feels nothing and squeezes on; the tank pays the servo's worst case)."""
     obj, paid, flagged, unseen = first_grasp("hand.sim.tactile_gain=0",
@@ -89,9 +97,9 @@ def test_dead_cells_on_an_elastic_object_raise_the_alarm(style: str) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("gain", [0.001, 0.01, 0.03, 0.1])
+@pytest.mark.parametrize("gain", GAINS)
 def test_at_any_gain_one_guard_or_the_other_raises_the_alarm_and_the_tank_pays(
-        gain: float) -> None:
+        first_grasp, gain: float) -> None:
     """The tactile calibration swept from nothing to a tenth on the crushing cylinder: cells
     below their noise floor leave the contact unseen (the stall guard flags it), cells that
     see it read the yield's flat chords (the yield guard); either way the tank pays at
@@ -105,15 +113,13 @@ def test_at_any_gain_one_guard_or_the_other_raises_the_alarm_and_the_tank_pays(
 
 
 @pytest.mark.slow
-def test_a_work_hardening_object_with_cells_reading_low_is_not_covered() -> None:
+def test_a_work_hardening_object_with_cells_reading_low_is_not_covered(first_grasp) -> None:
     """Outside what the guards cover (measured, kept so a change shows; docs/controllers.md):
     a skin whose yield level rises 2 N per mm of dent keeps its chords steeper than a fifth
     of the elastic ones, so with cells reading a third nothing is flagged and the tank pays
     about half of the plastic work (0.058 J for 0.10 J).  The deficit is bounded by the
     object itself (the dent stops once its yield level reaches the servo's force) but no
     bound is stated for it."""
-    obj, paid, flagged, unseen = first_grasp(
-        "hand.sim.object.yield_force_n=5", "hand.sim.object.yield_hardening_n_per_m=2000",
-        "hand.sim.tactile_gain=0.333")
+    obj, paid, flagged, unseen = first_grasp(*HARDENING)
     assert flagged == 0 and unseen == 0
     assert 0.0 < paid < obj

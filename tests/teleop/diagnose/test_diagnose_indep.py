@@ -10,11 +10,13 @@ from __future__ import annotations
 import functools
 
 import pytest
-from indep_axis import IndepCase, make  # tests/teleop/diagnose/indep_axis.py
+from indep_axis import IndepCase  # tests/teleop/diagnose/indep_axis.py
 
 from teleop.diagnose.diagnose import DiagnoseOptions, Diagnosis, diagnose
 from teleop.diagnose.library import Term
 from teleop.diagnose.report import to_json
+from tests.job_pool import JobPool
+from tests.teleop.diagnose.proof_cases import indep_case_and_diagnosis
 
 CONCEALED = ("coulomb_friction", "dead_time", "sensor_offset", "actuator_gain",
              "actuator_saturation")
@@ -24,13 +26,11 @@ SEED = 500
 
 @functools.cache
 def batch() -> tuple[tuple[IndepCase, Diagnosis], ...]:
-    out = []
-    for i in range(PER_CLASS):
-        for j, name in enumerate((None, *CONCEALED, "cogging")):
-            c = make(name, SEED + 11 * i + j)  # stride 11: both input kinds in every class
-            out.append((c, diagnose([c.recording],
-                                    DiagnoseOptions(c.nominal, "torque_nm", "angle_rad"))))
-    return tuple(out)
+    """Every case and its diagnosis (two processes: the same cases, in order)."""
+    cases = [(name, SEED + 11 * i + j)  # stride 11: both input kinds in every class
+             for i in range(PER_CLASS) for j, name in enumerate((None, *CONCEALED, "cogging"))]
+    with JobPool({k: (indep_case_and_diagnosis, c) for k, c in enumerate(cases)}) as pool:
+        return tuple(pool.result(k) for k in range(len(cases)))
 
 
 def _first(d: Diagnosis) -> str | None:

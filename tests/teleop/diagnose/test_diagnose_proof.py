@@ -15,17 +15,12 @@ import numpy as np
 import pytest
 
 from teleop.diagnose.axis_model import simulate_axis
-from teleop.diagnose.diagnose import DiagnoseOptions, Diagnosis, diagnose
-from teleop.diagnose.model import AxisNominal
-from teleop.diagnose.synth import (
-    INPUT_COL,
-    OUTPUT_COL,
-    SIGNALS,
-    SynthCase,
-    make_case,
-    make_validation,
-)
+from teleop.diagnose.diagnose import Diagnosis
+from teleop.diagnose.synth import INPUT_COL, SIGNALS, SynthCase, make_case, make_validation
 from teleop.effects import EFFECT_NAMES
+from tests.job_pool import JobPool
+from tests.teleop.diagnose.proof_cases import case_and_diagnosis
+from tests.teleop.diagnose.proof_cases import run_case as _run
 
 DURATION_S = 4.0
 PER_EFFECT = 5            # 12 effects x 5 = 60 cases
@@ -40,37 +35,27 @@ class Outcome:
     concealed: tuple[str, ...]
 
 
-def _nominal(case: SynthCase) -> AxisNominal:
-    # the nominal model knows inertia and stiffness to +-10 % (CAD / datasheet); damping is free
-    p = case.params
-    return AxisNominal(("inertia", "viscous", "stiffness"), (p.inertia, None, p.stiffness), 0.1)
-
-
-def _run(case: SynthCase, validate: SynthCase | None = None) -> Diagnosis:
-    opts = DiagnoseOptions(_nominal(case), INPUT_COL, OUTPUT_COL)
-    return diagnose([case.recording], opts, validate.recording if validate else None)
+def _batch(cases: list[tuple[tuple[str, ...], str, int]]) -> tuple[Outcome, ...]:
+    """Each ``(effects, signal, seed)`` case generated and diagnosed (two processes: the
+    same cases and diagnoses, in order, computed side by side)."""
+    with JobPool({i: (case_and_diagnosis, (*c, DURATION_S)) for i, c in enumerate(cases)}) as p:
+        return tuple(Outcome(*p.result(i), c[0]) for i, c in enumerate(cases))
 
 
 @functools.cache
 def effect_batch() -> tuple[Outcome, ...]:
-    out = []
+    cases = []
     seed = BASE_SEED
     for _ in range(PER_EFFECT):
         for name in EFFECT_NAMES:
             seed += 1
-            case = make_case((name,), SIGNALS[(seed) % 3], seed, duration_s=DURATION_S)
-            out.append(Outcome(case, _run(case), (name,)))
-    return tuple(out)
+            cases.append(((name,), SIGNALS[(seed) % 3], seed))
+    return _batch(cases)
 
 
 @functools.cache
 def clean_batch() -> tuple[Outcome, ...]:
-    out = []
-    for i in range(CLEAN_CASES):
-        seed = BASE_SEED + 1000 + i
-        case = make_case((), SIGNALS[i % 3], seed, duration_s=DURATION_S)
-        out.append(Outcome(case, _run(case), ()))
-    return tuple(out)
+    return _batch([((), SIGNALS[i % 3], BASE_SEED + 1000 + i) for i in range(CLEAN_CASES)])
 
 
 @pytest.mark.slow
