@@ -41,6 +41,7 @@ from teleop.diagnose.fit import (
     simulate,
 )
 from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.multistart import fit_best, restarts
 from teleop.diagnose.propose import select_with_library
 from teleop.diagnose.propose_ee import select_ee_with_library
 from teleop.diagnose.residual import analyse_residual, noise_std
@@ -99,7 +100,7 @@ def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
     """Nominal output-error fit; if it tracks poorly from the equation-error start, grow the
     fitted horizon (first 20 %, 50 %, all of every segment) so the fit cannot lock onto a wrong
     oscillation."""
-    fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
+    fit = fit_best(data, nominal, restarts(start, nominal), (), opts.max_nfev * 4)
     if nrmse(data.y, fit.y_fit) < 0.05:
         return fit
     grown = start

@@ -27,6 +27,7 @@ from teleop.diagnose.fit import (
 )
 from teleop.diagnose.library import Term
 from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.multistart import fit_best, restarts
 from teleop.diagnose.results import DiagnoseOptions, EffectResult
 
 UDELAY = Term("udelay").key.rsplit(":", 1)[0]   # "term:udelay"
@@ -183,8 +184,8 @@ class OEPath:
         for s, name, f in fits[:top]:
             if s >= self.opts.criterion.min_score:
                 try:
-                    f2 = fit_model(self.data, self.nominal, f.as_dict(), f.effects,
-                                   self.opts.max_nfev * 4)
+                    f2 = fit_best(self.data, self.nominal, restarts(f.as_dict()), f.effects,
+                                  self.opts.max_nfev * 4)
                     f, s = f2, engine.score(self, current, f2)
                 except NUMERIC_FAILURES:
                     pass  # keep the quick fit
@@ -230,7 +231,7 @@ def _prune(path: OEPath, full: ModelFit, chosen: list[EffectResult]
             start = {k: v for k, v in full.as_dict().items() if k != f"effect:{e.name}"
                      and not (e.name == "stiction" and k == "stribeck_velocity")}
             try:
-                reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
+                reduced = fit_best(data, nominal, restarts(start), rest, opts.max_nfev * 2)
             except NUMERIC_FAILURES:
                 continue  # cannot test this removal: keep the effect
             if engine.score(path, reduced, full) < opts.criterion.min_score:
