@@ -25,7 +25,8 @@ import numpy as np
 
 from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.equation_error import EESignals, _filt, ee_rows, model_equation_error
+from teleop.diagnose.ee_filter import EESignals, _filt
+from teleop.diagnose.equation_error import ee_rows, model_equation_error
 from teleop.diagnose.fit import NUMERIC_FAILURES, ModelFit, build, fit_model
 from teleop.diagnose.library import PREFIX, WAVE, Term, column, resolve
 from teleop.diagnose.results import EffectResult, ProposedTerm

@@ -11,12 +11,8 @@ import numpy as np
 from teleop.diagnose import candidates as cand
 from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.equation_error import (
-    EE_EFFECTS,
-    EESignals,
-    ee_effect_fit,
-    ee_fit,
-)
+from teleop.diagnose.ee_filter import EESignals
+from teleop.diagnose.equation_error import EE_EFFECTS, ee_effect_fit, ee_fit
 from teleop.diagnose.fit import (
     NUMERIC_FAILURES,
     FitData,
