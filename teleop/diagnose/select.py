@@ -203,7 +203,7 @@ def select_oe(path: OEPath, nom: ModelFit
         p, s = _effect_params(st.name, st.fit, data)
         chosen.append(EffectResult(st.name, p, s, st.verdict.score, st.verdict.holdout_gain,
                                    cand.explanation(st.name, p[0][1])))
-    if len(chosen) > 1:
+    if chosen:
         current, chosen = _prune(path, current, chosen)
         # report every effect's value as it stands in the final (joint) model
         final = []
@@ -220,7 +220,7 @@ def _prune(path: OEPath, full: ModelFit, chosen: list[EffectResult]
     """Backward elimination: drop an effect the others make redundant (score too small)."""
     data, nominal, opts = path.data, path.nominal, path.opts
     changed = True
-    while changed and len(chosen) > 1:
+    while changed and chosen:
         changed = False
         for e in list(chosen):
             rest = tuple(n for n in full.effects if n != e.name)
