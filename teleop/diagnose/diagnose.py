@@ -60,7 +60,7 @@ def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
     """Nominal output-error fit; if it tracks poorly from the equation-error start, grow the
     fitted horizon (first 20 %, 50 %, all of every segment) so the fit cannot lock onto a wrong
     oscillation."""
-    fit = fit_best(data, nominal, restarts(start, nominal), (), opts.max_nfev * 4, every=True)
+    fit = fit_best(data, nominal, restarts(start, nominal), (), opts.max_nfev * 4)
     if nrmse(data.y, fit.y_fit) < 0.05:
         return fit
     grown = start

@@ -6,12 +6,8 @@ where the shifted input crosses a reversal.  A fit started with the alignment at
 the nominal fit put it to make up for a missing effect) stayed there: the Coulomb drive of
 independent seed 178 then stopped at 3x the residual of the fit started at the centre, and a
 gravity term made up the difference (a false discovery).  So every fit that decides what is
-named (a candidate's refinement, a library term's fit, the backward elimination) is started
-again with the alignment at the centre of its range when it ended at a bound, and the nominal
-fit always from the equation-error values, the same with the alignment centred and the stated
-nominal values; the lowest residual is kept.  (Every start for every fit cost 40-50 % more CPU
-time on ``teleop bench diagnose``, 10.5 s against 6.9-7.7 s at a load average of 8; this way
-7.2-7.9 s.)
+named is also started with the alignment at the centre of its range, and with the stated
+nominal values, and the best fit is kept.
 """
 
 from __future__ import annotations
@@ -40,17 +36,12 @@ def restarts(start: dict[str, float], nominal: AxisNominal | None = None
 
 
 def fit_best(data: FitData, nominal: AxisNominal, starts: Sequence[dict[str, float]],
-             effects: tuple[str, ...], max_nfev: int, mask: Array | None = None,
-             every: bool = False) -> ModelFit:
-    """The fit from the first start; from the other ``starts`` too when ``every`` or when it
-    ends with the alignment at a bound (where a fit got stuck); the lowest residual is kept (a
-    start whose fit fails numerically is skipped; if all fail, the first's failure is
-    raised)."""
+             effects: tuple[str, ...], max_nfev: int, mask: Array | None = None) -> ModelFit:
+    """The fit of lowest residual from ``starts`` (a start whose fit fails numerically is
+    skipped; if all fail, the first's failure is raised)."""
     best: ModelFit | None = None
     first: Exception | None = None
-    for i, st in enumerate(starts):
-        if best is not None and i > 0 and not every and not _at_bound(best, data):
-            break
+    for st in starts:
         try:
             f = fit_model(data, nominal, st, effects, max_nfev, mask=mask)
         except NUMERIC_FAILURES as e:
@@ -62,10 +53,3 @@ def fit_best(data: FitData, nominal: AxisNominal, starts: Sequence[dict[str, flo
         assert first is not None
         raise first
     return best
-
-
-def _at_bound(f: ModelFit, data: FitData) -> bool:
-    """Whether ``f`` ended with the input's alignment within 1 % of a bound of its range."""
-    if SHIFT not in f.names:
-        return True   # nothing to tell by: try every start
-    return abs(f.value(SHIFT)) >= 0.99 * data.scales.dt_s
