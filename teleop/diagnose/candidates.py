@@ -64,8 +64,10 @@ def applicable(nominal: AxisNominal, has_input: bool) -> tuple[str, ...]:
                  "series_compliance", "nonlinear_stiffness", "gravity"):
         if name in INPUT_EFFECTS and not has_input:
             continue
-        if name == "coulomb_friction" and nominal.has("coulomb"):
-            continue
+        if name == "coulomb_friction" and nominal.has("coulomb") and (
+                nominal.value("coulomb") is None):
+            continue  # a free Coulomb level already is the effect; a stated one is bounded
+            # by its tolerance, and a level beyond it is the missing effect
         if name == "gravity" and nominal.has("gravity"):
             continue
         if name == "sensor_offset" and nominal.has("offset") and not (

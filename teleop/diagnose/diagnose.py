@@ -18,29 +18,22 @@ import numpy as np
 
 from teleop.diagnose import candidates as cand
 from teleop.diagnose import library
+from teleop.diagnose.axis_data import decimate, initial_state, recording_signals
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.ee_align import aligned_selection, shifted
+from teleop.diagnose.ee_align import aligned_selection
+from teleop.diagnose.ee_filter import concat_ee, contiguous, ee_signals
 from teleop.diagnose.ee_noise import Raw, ee_noise, excess_windows, noise_level
-from teleop.diagnose.equation_error import (
-    EEFit,
-    concat_ee,
-    contiguous,
-    ee_apply,
-    ee_fit,
-    ee_signals,
-    model_equation_error,
-)
+from teleop.diagnose.equation_error import EEFit, ee_fit, model_equation_error
 from teleop.diagnose.fit import (
     BEFORE,
     SHIFT,
     FitData,
     ModelFit,
-    Segment,
     build,
     fit_model,
-    simulate,
 )
 from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.multistart import fit_best, restarts
 from teleop.diagnose.propose import select_with_library
 from teleop.diagnose.propose_ee import select_ee_with_library
 from teleop.diagnose.residual import analyse_residual, noise_std
@@ -54,44 +47,12 @@ from teleop.diagnose.results import (
     nrmse,
 )
 from teleop.diagnose.select import OEPath
+from teleop.diagnose.validate import validate_ee, validate_oe
 from teleop.diagnose.windows import conditions, excess, locate_windows, moving_rms
-from teleop.errors import RecordingError, UserInputError
+from teleop.errors import UserInputError
 from teleop.recording import Recording
 
 OE_DRIFT_NRMSE = 0.7
-MIN_SAMPLES = 200
-
-
-def _signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None, Array]:
-    where = rec.source
-    y = rec.column(opts.output_col)
-    u = rec.column(opts.input_col) if opts.input_col else None
-    t = rec.t_s
-    for name, col in (("t_s", t), (opts.output_col, y)) + (
-            ((opts.input_col, u),) if u is not None else ()):
-        bad = ~np.isfinite(col)
-        if np.any(bad):
-            raise RecordingError(f"{where}: column {name!r} has a gap (missing or non-finite "
-                                 f"value) at data row {int(np.argmax(bad)) + 1}")
-    if len(t) < MIN_SAMPLES:
-        raise RecordingError(f"{where}: column 't_s' has {len(t)} data rows, too short to "
-                             f"diagnose (need at least {MIN_SAMPLES})")
-    if float(np.std(y)) <= 0:
-        raise RecordingError(f"{where}: column {opts.output_col!r} never changes; nothing to fit")
-    dts = np.diff(t)
-    if np.max(dts) > 5 * np.median(dts):
-        i = int(np.argmax(dts))
-        raise RecordingError(f"{where}: column 't_s' has a sampling gap of {dts[i]:.3g} s at "
-                             f"data row {i + 2} (t={t[i + 1]:.6g} s; uneven sampling; split the "
-                             "recording)")
-    return t, u, y
-
-
-def initial_state(t: Array, y: Array, span_s: float = 0.03) -> tuple[float, float]:
-    """Position and velocity at the first sample from a quadratic fit over ``span_s``."""
-    n = max(5, int(np.searchsorted(t, t[0] + span_s)))
-    c = np.polyfit(t[:n] - t[0], y[:n], 2)
-    return float(c[2]), float(c[1])
 
 
 def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
@@ -99,7 +60,7 @@ def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
     """Nominal output-error fit; if it tracks poorly from the equation-error start, grow the
     fitted horizon (first 20 %, 50 %, all of every segment) so the fit cannot lock onto a wrong
     oscillation."""
-    fit = fit_model(data, nominal, start, (), opts.max_nfev * 4)
+    fit = fit_best(data, nominal, restarts(start, nominal), (), opts.max_nfev * 4)
     if nrmse(data.y, fit.y_fit) < 0.05:
         return fit
     grown = start
@@ -110,23 +71,12 @@ def _fit_nominal(data: FitData, nominal: AxisNominal, start: dict[str, float],
     return g if g.rss < fit.rss else fit
 
 
-def _decimate(t: Array, u: Array | None, y: Array, rate_hz: float) -> Segment:
-    fs = 1.0 / float(np.median(np.diff(t)))
-    m = max(1, int(round(fs / rate_hz)))
-    if m == 1:
-        return Segment(t, u, y)
-    n = (len(t) // m) * m
-    td, yd = t[:n:m], y[:n:m]
-    ud = None if u is None else u[:n].reshape(-1, m).mean(axis=1)
-    return Segment(td, ud, yd)
-
-
 def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
              validate: Recording | None = None) -> Diagnosis:
     """Diagnose what the nominal axis model misses in ``recordings``."""
     if not recordings:
         raise UserInputError("no recording given")
-    raw = [_signals(r, opts) for r in recordings]
+    raw = [recording_signals(r, opts) for r in recordings]
     has_input = opts.input_col is not None
     nominal = opts.nominal
     fixed_inertia = nominal.value("inertia") or 1.0
@@ -144,7 +94,7 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
     dt = float(np.median(np.diff(raw[0][0])))
     scales = cand.Scales(effort or 1.0, pos, vel, umax, max(inertia, 1e-9), dur, dt)
     rate = min(opts.fit_rate_hz, max(100.0, opts.max_fit_samples / dur))
-    segs = tuple(_decimate(t, u, y, rate) for t, u, y in raw)
+    segs = tuple(decimate(t, u, y, rate) for t, u, y in raw)
     max_dt = min(2e-3, float(np.median(np.diff(segs[0].t))))
     data = FitData(segs, max_dt, scales, fixed_inertia, 0.05 * vel)
     start = {n: c for n, c in zip(nom_ee.names, nom_ee.coef, strict=True)}
@@ -259,70 +209,13 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         where = excess_windows(sig.t, sig.x, r_after, fl_a, ok, conds)
     val = None
     if validate is not None:
-        val = (_validate(validate, opts, data, nom_fit, final) if mode == "output-error"
-               else _validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia, shift_s))
+        val = (validate_oe(validate, opts, data, nom_fit, final) if mode == "output-error"
+               else validate_ee(validate, opts, nominal, nom_e, fin_e, fixed_inertia, shift_s))
     units = (library.units(opts.input_col, "effort units"),
              library.units(opts.output_col, "position units"))
     return Diagnosis(mode, reason, nominal_params, final_params, tuple(chosen), tuple(ranking),
                      windows, stats_b, stats_a, before, after, val, traces, proposed, units,
                      tuple(amb), where)
-
-
-def _validate(rec: Recording, opts: DiagnoseOptions, data: FitData, nom: ModelFit,
-              final: ModelFit) -> Validation:
-    """NRMSE of both models on a held-out recording (only the initial state is fitted)."""
-    t, u, y = _signals(rec, opts)
-    if (u is None) != (not data.has_input):
-        raise UserInputError(f"{rec.source}: validation recording must match the input setup")
-    seg = _decimate(t, u, y, 1.0 / float(np.median(np.diff(data.segments[0].t))))
-    vdata = FitData((seg,), data.max_dt_s, data.scales, data.fixed_inertia,
-                    data.stribeck_velocity)
-    x0, v0 = initial_state(t, y)
-    out = []
-    for f in (nom, final):
-        start = {**{k: v for k, v in f.as_dict().items()
-                    if not k.startswith(("x0_", "v0_", BEFORE))},
-                 "x0_0": x0, "v0_0": v0}
-        out.append(nrmse(seg.y, _fit_state_only(vdata, start)))
-    return Validation(out[0], out[1])
-
-
-def _validate_ee(rec: Recording, opts: DiagnoseOptions, nominal: AxisNominal, nom: EEFit,
-                 final: EEFit, fixed_inertia: float, shift_s: float) -> Validation:
-    """Equation-error NRMSE (effort) of both fitted models on a held-out recording (its input
-    aligned as the fitted recordings' was)."""
-    ((t, u, y),) = shifted([_signals(rec, opts)], shift_s)
-    sig = ee_signals(t, y, u)
-    m = int(3 * sig.fs_hz / sig.cutoff_hz)
-    keep = slice(m, len(t) - m)
-    tgt = (fixed_inertia * sig.a if sig.u is None else sig.u)[keep]
-    scale = float(np.linalg.norm(tgt - np.mean(tgt))) or 1.0
-    return Validation(*(float(np.linalg.norm(ee_apply(sig, nominal, f, fixed_inertia)[keep]))
-                        / scale for f in (nom, final)))
-
-
-def _fit_state_only(data: FitData, start: dict[str, float]) -> Array:
-    """Simulation with every parameter fixed but the initial state (fitted)."""
-    from scipy import optimize
-
-    names = tuple(start)
-    base = [start[k] for k in names]
-    i0, i1 = names.index("x0_0"), names.index("v0_0")
-
-    def theta(s: Array) -> tuple[float, ...]:
-        th = list(base)
-        th[i0], th[i1] = float(s[0]), float(s[1])
-        return tuple(th)
-
-    def resid(s: Array) -> Array:
-        r = simulate(names, theta(s), data) - data.y
-        return np.where(np.isfinite(r), r, 10 * data.scales.position)
-
-    x0 = np.array([start["x0_0"], start["v0_0"]])
-    res = optimize.least_squares(resid, x0, x_scale=np.array([data.scales.position,
-                                                              data.scales.velocity]),
-                                 max_nfev=40)
-    return simulate(names, theta(res.x), data)
 
 
 __all__ = ["DiagnoseOptions", "Diagnosis", "EffectResult", "Validation", "Traces", "diagnose",

@@ -22,8 +22,9 @@ from typing import TypeVar
 import numpy as np
 
 from teleop.diagnose.axis_model import delayed
+from teleop.diagnose.ee_filter import concat_ee, ee_signals
 from teleop.diagnose.ee_noise import Raw
-from teleop.diagnose.equation_error import EEFit, concat_ee, ee_fit, ee_signals, fit_effects
+from teleop.diagnose.equation_error import EEFit, ee_fit, fit_effects
 from teleop.diagnose.model import AxisNominal
 
 R = TypeVar("R")

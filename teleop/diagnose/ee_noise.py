@@ -17,7 +17,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.equation_error import EEFit, EESignals, concat_ee, ee_apply, ee_signals
+from teleop.diagnose.ee_filter import EESignals, concat_ee, ee_signals
+from teleop.diagnose.equation_error import EEFit, ee_apply
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.residual import noise_std
 from teleop.diagnose.windows import Window, locate_windows, moving_rms

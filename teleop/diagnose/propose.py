@@ -25,9 +25,11 @@ import numpy as np
 
 from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.equation_error import EESignals, _filt, ee_rows, model_equation_error
-from teleop.diagnose.fit import NUMERIC_FAILURES, ModelFit, build, fit_model
+from teleop.diagnose.ee_filter import EESignals, _filt
+from teleop.diagnose.equation_error import ee_rows, model_equation_error
+from teleop.diagnose.fit import NUMERIC_FAILURES, ModelFit, build
 from teleop.diagnose.library import PREFIX, WAVE, Term, column, resolve
+from teleop.diagnose.multistart import fit_best, restarts
 from teleop.diagnose.results import EffectResult, ProposedTerm
 from teleop.diagnose.select import OEPath, select_oe
 
@@ -143,7 +145,7 @@ def propose(path: OEPath, nom: ModelFit, final: ModelFit
         if group[0].kind == "sin":   # its wavenumber is refined by the simulation fit
             start[f"{WAVE}{group[0].const:.6g}"] = group[0].const
         try:
-            f = fit_model(data, nominal, start, current.effects, opts.max_nfev * 4)
+            f = fit_best(data, nominal, restarts(start), current.effects, opts.max_nfev * 4)
         except NUMERIC_FAILURES:
             continue
         key = group[0].key

@@ -40,7 +40,8 @@ import numpy as np
 
 from teleop.diagnose import engine
 from teleop.diagnose.candidates import Scales
-from teleop.diagnose.equation_error import EE_EFFECTS, EEFit, EESignals, ee_fit, ee_rows
+from teleop.diagnose.ee_filter import EESignals
+from teleop.diagnose.equation_error import EE_EFFECTS, EEFit, ee_fit, ee_rows
 from teleop.diagnose.fit import NUMERIC_FAILURES
 from teleop.diagnose.model import AxisNominal
 from teleop.diagnose.propose import ranked_terms

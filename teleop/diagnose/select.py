@@ -11,12 +11,8 @@ import numpy as np
 from teleop.diagnose import candidates as cand
 from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
-from teleop.diagnose.equation_error import (
-    EE_EFFECTS,
-    EESignals,
-    ee_effect_fit,
-    ee_fit,
-)
+from teleop.diagnose.ee_filter import EESignals
+from teleop.diagnose.equation_error import EE_EFFECTS, ee_effect_fit, ee_fit
 from teleop.diagnose.fit import (
     NUMERIC_FAILURES,
     FitData,
@@ -27,6 +23,7 @@ from teleop.diagnose.fit import (
 )
 from teleop.diagnose.library import Term
 from teleop.diagnose.model import AxisNominal
+from teleop.diagnose.multistart import fit_best, restarts
 from teleop.diagnose.results import DiagnoseOptions, EffectResult
 
 UDELAY = Term("udelay").key.rsplit(":", 1)[0]   # "term:udelay"
@@ -183,8 +180,8 @@ class OEPath:
         for s, name, f in fits[:top]:
             if s >= self.opts.criterion.min_score:
                 try:
-                    f2 = fit_model(self.data, self.nominal, f.as_dict(), f.effects,
-                                   self.opts.max_nfev * 4)
+                    f2 = fit_best(self.data, self.nominal, restarts(f.as_dict()), f.effects,
+                                  self.opts.max_nfev * 4)
                     f, s = f2, engine.score(self, current, f2)
                 except NUMERIC_FAILURES:
                     pass  # keep the quick fit
@@ -206,7 +203,7 @@ def select_oe(path: OEPath, nom: ModelFit
         p, s = _effect_params(st.name, st.fit, data)
         chosen.append(EffectResult(st.name, p, s, st.verdict.score, st.verdict.holdout_gain,
                                    cand.explanation(st.name, p[0][1])))
-    if len(chosen) > 1:
+    if chosen:
         current, chosen = _prune(path, current, chosen)
         # report every effect's value as it stands in the final (joint) model
         final = []
@@ -223,14 +220,14 @@ def _prune(path: OEPath, full: ModelFit, chosen: list[EffectResult]
     """Backward elimination: drop an effect the others make redundant (score too small)."""
     data, nominal, opts = path.data, path.nominal, path.opts
     changed = True
-    while changed and len(chosen) > 1:
+    while changed and chosen:
         changed = False
         for e in list(chosen):
             rest = tuple(n for n in full.effects if n != e.name)
             start = {k: v for k, v in full.as_dict().items() if k != f"effect:{e.name}"
                      and not (e.name == "stiction" and k == "stribeck_velocity")}
             try:
-                reduced = fit_model(data, nominal, start, rest, opts.max_nfev * 2)
+                reduced = fit_best(data, nominal, restarts(start), rest, opts.max_nfev * 2)
             except NUMERIC_FAILURES:
                 continue  # cannot test this removal: keep the effect
             if engine.score(path, reduced, full) < opts.criterion.min_score:

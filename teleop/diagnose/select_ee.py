@@ -12,10 +12,10 @@ import numpy as np
 from teleop.diagnose import candidates as cand
 from teleop.diagnose import engine
 from teleop.diagnose.axis_model import Array
+from teleop.diagnose.ee_filter import EESignals
 from teleop.diagnose.equation_error import (
     EE_EFFECTS,
     EEFit,
-    EESignals,
     ee_apply,
     ee_effect_fit,
     ee_fit,
