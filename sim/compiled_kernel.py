@@ -46,11 +46,12 @@ KIND_NONE, KIND_CYLINDER, KIND_BLOCK = 0.0, 1.0, 2.0
 
 
 @njit(cache=True)
-def pad_spring(o: np.ndarray, scale: float, depth: float) -> tuple[float, float]:
+def pad_spring(o: np.ndarray, scale: float, depth: float,
+               core: bool = True) -> tuple[float, float]:
     """``sim.contact.pad_spring`` over the object array."""
     ke = o[4] * scale
     force = ke * depth
-    if depth > o[6]:
+    if core and depth > o[6]:
         kc = o[7] * scale
         force += kc * (depth - o[6])
         ke += kc
@@ -58,16 +59,45 @@ def pad_spring(o: np.ndarray, scale: float, depth: float) -> tuple[float, float]
 
 
 @njit(cache=True)
-def mean_spring_force(o: np.ndarray, s0: float, d0: float, s1: float, d1: float) -> float:
+def mean_spring_force(o: np.ndarray, s0: float, d0: float, s1: float, d1: float,
+                      core: bool = True) -> float:
     """``sim.contact.mean_spring_force`` over the object array."""
-    f0 = pad_spring(o, s0, d0)[0]
-    f1 = pad_spring(o, s1, d1)[0]
+    f0 = pad_spring(o, s0, d0, core)[0]
+    f1 = pad_spring(o, s1, d1, core)[0]
     dc = o[6]
     if (d0 - dc) * (d1 - dc) >= 0.0:
         return 0.5 * (f0 + f1)
     a = (dc - d0) / (d1 - d0)
-    fc = pad_spring(o, s0 + a * (s1 - s0), dc)[0]
+    fc = pad_spring(o, s0 + a * (s1 - s0), dc, core)[0]
     return 0.5 * ((f0 + fc) * a + (fc + f1) * (1.0 - a))
+
+
+@njit(cache=True)
+def half_plane_contact(face: float, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+                       by: float) -> tuple[float, float, float, float, float]:
+    """``sim.contact.half_plane_contact``."""
+    pa = sphi * ax + cphi * ay - face
+    pb = sphi * bx + cphi * by - face
+    nx = -sphi
+    ny = -cphi
+    if pa <= 0.0 and pb <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    if pa > 0.0 and pb > 0.0:
+        return 1.0, 0.5 * (pa + pb), (pa + 2.0 * pb) / (3.0 * (pa + pb)), nx, ny
+    if pb > 0.0:
+        t0 = pa / (pa - pb)
+        frac = 1.0 - t0
+        return frac, 0.5 * pb, t0 + frac * 2.0 / 3.0, nx, ny
+    t0 = pa / (pa - pb)
+    return t0, 0.5 * pa, t0 / 3.0, nx, ny
+
+
+@njit(cache=True)
+def block_core(o: np.ndarray, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+               by: float) -> tuple[float, float, float]:
+    """``sim.contact.block_core`` over the object array."""
+    sc, dc, tc, _, _ = half_plane_contact(o[2] + o[6], cphi, sphi, ax, ay, bx, by)
+    return sc, dc, tc
 
 
 @njit(cache=True)
@@ -100,20 +130,7 @@ def pad_contact(o: np.ndarray, cphi: float, sphi: float, ax: float, ay: float, b
             return 0.0, 0.0, 0.0, 0.0, 0.0
         return 1.0, depth, t, dx / dist, dy / dist
     if o[0] == KIND_BLOCK:
-        pa = sphi * ax + cphi * ay - o[2]
-        pb = sphi * bx + cphi * by - o[2]
-        nx = -sphi
-        ny = -cphi
-        if pa <= 0.0 and pb <= 0.0:
-            return 0.0, 0.0, 0.0, 0.0, 0.0
-        if pa > 0.0 and pb > 0.0:
-            return 1.0, 0.5 * (pa + pb), (pa + 2.0 * pb) / (3.0 * (pa + pb)), nx, ny
-        if pb > 0.0:
-            t0 = pa / (pa - pb)
-            frac = 1.0 - t0
-            return frac, 0.5 * pb, t0 + frac * 2.0 / 3.0, nx, ny
-        t0 = pa / (pa - pb)
-        return t0, 0.5 * pa, t0 / 3.0, nx, ny
+        return half_plane_contact(o[2], cphi, sphi, ax, ay, bx, by)
     return 0.0, 0.0, 0.0, 0.0, 0.0
 
 

@@ -21,9 +21,11 @@ from sim.compiled_kernel import (
     K_PO,
     K_PROX,
     K_SEG,
+    KIND_BLOCK,
     X_CRUSH,
     X_FLEX,
     X_PHI,
+    block_core,
     mean_spring_force,
     pad_contact,
 )
@@ -50,11 +52,11 @@ def run_finger(x: np.ndarray, cmds: np.ndarray, dts: np.ndarray, k: np.ndarray,
 
 
 @njit(cache=True)
-def pad_depths(x: np.ndarray, k: np.ndarray,
-               o: np.ndarray) -> tuple[float, float, float, float, float, float]:
+def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray
+               ) -> tuple[float, float, float, float, float, float, float, float, float, float]:
     """``sim.audit.pad_depths`` over the arrays."""
     if o[0] == 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     phi = x[X_PHI]
     cphi = math.cos(phi)
     sphi = math.sin(phi)
@@ -77,22 +79,39 @@ def pad_depths(x: np.ndarray, k: np.ndarray,
     s_d, d_d, _, _, _ = pad_contact(o, cphi, sphi, ax, ay, bx, by)
     d_p = max(d_p, 0.0)
     d_d = max(d_d, 0.0)
+    cs_p = 0.0
+    cd_p = 0.0
+    cs_d = 0.0
+    cd_d = 0.0
+    if o[0] == KIND_BLOCK:
+        cs_p, cd_p, _ = block_core(o, cphi, sphi, k[K_PADSTART], po, k[K_PROX], po)
+        cs_d, cd_d, _ = block_core(o, cphi, sphi, ax, ay, bx, by)
     if o[8] > 0.0:
         return (s_p, d_p, s_d, d_d, pad_dent(o, x[X_CRUSH], d_p),
-                pad_dent(o, x[X_CRUSH + 1], d_d))
-    return s_p, d_p, s_d, d_d, 0.0, 0.0
+                pad_dent(o, x[X_CRUSH + 1], d_d), cs_p, cd_p, cs_d, cd_d)
+    return s_p, d_p, s_d, d_d, 0.0, 0.0, cs_p, cd_p, cs_d, cd_d
 
 
 @njit(cache=True)
-def _pad_work(s0: float, d0: float, s1: float, d1: float, o: np.ndarray, dt: float) -> float:
+def _pad_work(s0: float, d0: float, s1: float, d1: float, o: np.ndarray, dt: float,
+              core: bool) -> float:
     if d0 <= 0.0 and d1 <= 0.0:
         return 0.0
     cc = o[5]
     dd = d1 - d0
-    elastic = mean_spring_force(o, s0, d0, s1, d1)
+    elastic = mean_spring_force(o, s0, d0, s1, d1, core)
     damping = cc * 0.5 * (s0 + s1) * dd / dt if dt > 0.0 else 0.0
     force = max(elastic + damping, 0.0)
     return force * dd
+
+
+@njit(cache=True)
+def core_work(s0: float, d0: float, s1: float, d1: float, o: np.ndarray) -> float:
+    """``sim.audit.core_work_j`` over the object array."""
+    if d0 <= 0.0 and d1 <= 0.0:
+        return 0.0
+    kc = o[7]
+    return kc * 0.5 * (s0 * d0 + s1 * d1) * (d1 - d0)
 
 
 @njit(cache=True)
@@ -125,11 +144,12 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
     speed]); with ``audit`` the work on the object is added to ``delivered``/``taken`` per
     finger at every step, as ``SimHand.read`` does.  Returns the steps taken."""
     nf = xs.shape[0]
-    depths = np.zeros((nf, 6))
+    depths = np.zeros((nf, 10))
     if audit:
         for i in range(nf):
             b = depths[i]
-            b[0], b[1], b[2], b[3], b[4], b[5] = pad_depths(xs[i], k, objs[i])
+            (b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8],
+             b[9]) = pad_depths(xs[i], k, objs[i])
     done = 0
     for _ in range(steps):
         if pre[0] + 0.5 * dt > t_end:
@@ -142,15 +162,21 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
         if audit:
             for i in range(nf):
                 o = objs[i]
-                s_p, d_p, s_d, d_d, c_p, c_d = pad_depths(xs[i], k, o)
+                (s_p, d_p, s_d, d_d, c_p, c_d, cs_p, cd_p, cs_d,
+                 cd_d) = pad_depths(xs[i], k, o)
                 b = depths[i]
+                core = o[0] != KIND_BLOCK
                 if o[8] > 0.0:
-                    w = (yield_pad_work(b[0], b[1], b[4], s_p, d_p, c_p, o, dt)
-                         + yield_pad_work(b[2], b[3], b[5], s_d, d_d, c_d, o, dt))
+                    w = (yield_pad_work(b[0], b[1], b[4], s_p, d_p, c_p, o, dt, core)
+                         + yield_pad_work(b[2], b[3], b[5], s_d, d_d, c_d, o, dt, core))
                 else:
-                    w = (_pad_work(b[0], b[1], s_p, d_p, o, dt)
-                         + _pad_work(b[2], b[3], s_d, d_d, o, dt))
+                    w = (_pad_work(b[0], b[1], s_p, d_p, o, dt, core)
+                         + _pad_work(b[2], b[3], s_d, d_d, o, dt, core))
+                if not core:
+                    w = (w + core_work(b[6], b[7], cs_p, cd_p, o)
+                         + core_work(b[8], b[9], cs_d, cd_d, o))
                 b[0], b[1], b[2], b[3], b[4], b[5] = s_p, d_p, s_d, d_d, c_p, c_d
+                b[6], b[7], b[8], b[9] = cs_p, cd_p, cs_d, cd_d
                 if w > 0.0:
                     delivered[i] += w
                 else:

@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.compiled_crush import pad_law
+from sim.compiled_crush import pad_force
 from sim.compiled_kernel import (
     E_BACKLASH,
     E_GRAVITY,
@@ -151,9 +151,10 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
         ax0 = k[K_PADSTART]
         scale, depth, tt, nx, ny = pad_contact(o, cphi, sphi, ax0, po, prox_len, po)
         if depth > 0.0:
+            fe, ke, ce, tt, crush_p = pad_force(o, cphi, sphi, ax0, po, prox_len, po, scale,
+                                                depth, tt, crush_p)
             cx_ = ax0 + tt * (prox_len - ax0)
             jn = -po * nx + cx_ * ny
-            fe, ke, ce, crush_p = pad_law(o, scale, depth, crush_p)
             force = fe - ce * jn * v_phi
             if force > 0.0:
                 f_phi += fe * jn
@@ -168,6 +169,8 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
         byd = ayd + sa * ld
         scale, depth, tt, nx, ny = pad_contact(o, cphi, sphi, axd, ayd, bxd, byd)
         if depth > 0.0:
+            fe, ke, ce, tt, crush_d = pad_force(o, cphi, sphi, axd, ayd, bxd, byd, scale,
+                                                depth, tt, crush_d)
             cx_ = axd + tt * (bxd - axd)
             cy_ = ayd + tt * (byd - ayd)
             jn_phi = -cy_ * nx + cx_ * ny
@@ -176,7 +179,6 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
             vn = jn_phi * v_phi
             for i in range(n):
                 vn += jns[i] * fvel[i]
-            fe, ke, ce, crush_d = pad_law(o, scale, depth, crush_d)
             force = fe - ce * vn
             if force > 0.0:
                 fk = fe

@@ -9,7 +9,12 @@ damper ``damping_n_s_per_m``) normal force on each link's pad; pressed deeper th
 the spring (``pad_spring``), so the servo's full torque cannot push a finger through the
 object. A cylinder touches a pad at one point; a block presses a pad as a Winkler foundation
 (stiffness spread uniformly along the pad), whose resultant acts at the centroid of the
-pressed part.
+pressed part. The block's core lies under the bed of springs: each element meets it at its own
+depth ``core_depth_m`` (:func:`block_core`, ``sim.crush.block_law``), so a pad pressed into
+the face edge first meets the core with its deepest point, with a stiffness that grows from
+zero as more of the pad reaches the core. (Met on the pressed part's mean depth, as a
+cylinder's single point meets it, a pad tilted into the face went in tip first 2-3 core depths
+deep, curled past the perpendicular and stayed there: the lock of issue 13.)
 
 A yielding object (``yield_force_n`` > 0, N) has a skin that crushes plastically: each pad
 leaves a permanent dent (m) and the skin's spring pushes back ``k s (d - dent)``, at most the
@@ -61,12 +66,14 @@ def contact_object_from_config(cfg: ObjectConfig) -> ContactObject:
                          yield_hardening_n_per_m=cfg.yield_hardening_n_per_m)
 
 
-def pad_spring(obj: ContactObject, scale: float, depth_m: float) -> tuple[float, float]:
+def pad_spring(obj: ContactObject, scale: float, depth_m: float,
+               core: bool = True) -> tuple[float, float]:
     """(elastic force N, tangent stiffness N/m) of a pad ``depth_m`` deep, ``scale`` engaged:
-    the skin's spring, plus the core's once ``core_depth_m`` is passed."""
+    the skin's spring, plus the core's once ``core_depth_m`` is passed (``core``: a block's
+    core is met element by element instead, :func:`block_core`)."""
     ke = obj.stiffness_n_per_m * scale
     force = ke * depth_m
-    if depth_m > obj.core_depth_m:
+    if core and depth_m > obj.core_depth_m:
         kc = obj.core_stiffness_n_per_m * scale
         force += kc * (depth_m - obj.core_depth_m)
         ke += kc
@@ -75,17 +82,18 @@ def pad_spring(obj: ContactObject, scale: float, depth_m: float) -> tuple[float,
 
 
 
-def mean_spring_force(obj: ContactObject, s0: float, d0: float, s1: float, d1: float) -> float:
+def mean_spring_force(obj: ContactObject, s0: float, d0: float, s1: float, d1: float,
+                      core: bool = True) -> float:
     """The pad spring's mean force as the depth goes d0 -> d1 (the engaged fraction s0 -> s1
     linearly): trapezoidal on each side of the core's depth, so its product with d1 - d0 is
     the spring's exact work at a constant fraction."""
-    f0 = pad_spring(obj, s0, d0)[0]
-    f1 = pad_spring(obj, s1, d1)[0]
+    f0 = pad_spring(obj, s0, d0, core)[0]
+    f1 = pad_spring(obj, s1, d1, core)[0]
     dc = obj.core_depth_m
     if (d0 - dc) * (d1 - dc) >= 0.0:
         return 0.5 * (f0 + f1)
     a = (dc - d0) / (d1 - d0)
-    fc = pad_spring(obj, s0 + a * (s1 - s0), dc)[0]
+    fc = pad_spring(obj, s0 + a * (s1 - s0), dc, core)[0]
     return 0.5 * ((f0 + fc) * a + (fc + f1) * (1.0 - a))
 
 def pad_contact(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: float, bx: float,
@@ -127,23 +135,39 @@ def pad_contact(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: flo
             return 0.0, 0.0, 0.0, 0.0, 0.0
         return 1.0, depth, t, dx / dist, dy / dist
     if obj.kind == "block":
-        # half-plane world y >= y_m; world y of a proximal-frame point = s x + c y
-        pa = sphi * ax + cphi * ay - obj.y_m
-        pb = sphi * bx + cphi * by - obj.y_m
-        nx, ny = -sphi, -cphi
-        if pa <= 0.0 and pb <= 0.0:
-            return 0.0, 0.0, 0.0, 0.0, 0.0
-        if pa > 0.0 and pb > 0.0:
-            mean = 0.5 * (pa + pb)
-            t = (pa + 2.0 * pb) / (3.0 * (pa + pb))
-            return 1.0, mean, t, nx, ny
-        if pb > 0.0:
-            t0 = pa / (pa - pb)
-            frac = 1.0 - t0
-            return frac, 0.5 * pb, t0 + frac * 2.0 / 3.0, nx, ny
-        t0 = pa / (pa - pb)
-        return t0, 0.5 * pa, t0 / 3.0, nx, ny
+        return half_plane_contact(obj.y_m, cphi, sphi, ax, ay, bx, by)
     return 0.0, 0.0, 0.0, 0.0, 0.0
+
+
+def half_plane_contact(face_m: float, cphi: float, sphi: float, ax: float, ay: float,
+                       bx: float, by: float) -> tuple[float, float, float, float, float]:
+    """:func:`pad_contact` of a pad A->B in the half-plane world y >= ``face_m`` (a bed of
+    springs: the engaged fraction, the mean depth of the pressed part, its centroid)."""
+    # world y of a proximal-frame point = s x + c y
+    pa = sphi * ax + cphi * ay - face_m
+    pb = sphi * bx + cphi * by - face_m
+    nx, ny = -sphi, -cphi
+    if pa <= 0.0 and pb <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    if pa > 0.0 and pb > 0.0:
+        mean = 0.5 * (pa + pb)
+        t = (pa + 2.0 * pb) / (3.0 * (pa + pb))
+        return 1.0, mean, t, nx, ny
+    if pb > 0.0:
+        t0 = pa / (pa - pb)
+        frac = 1.0 - t0
+        return frac, 0.5 * pb, t0 + frac * 2.0 / 3.0, nx, ny
+    t0 = pa / (pa - pb)
+    return t0, 0.5 * pa, t0 / 3.0, nx, ny
+
+
+def block_core(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+               by: float) -> tuple[float, float, float]:
+    """(engaged fraction, mean depth m, where t) of the part of a pad A->B pressed past a
+    block's rigid core: every element of the bed of springs meets the core at its own depth
+    ``core_depth_m`` (the pad's deepest point first), not at the pressed part's mean depth."""
+    sc, dc, tc, _, _ = half_plane_contact(obj.y_m + obj.core_depth_m, cphi, sphi, ax, ay, bx, by)
+    return sc, dc, tc
 
 
 def sensor_pressures(params: FingerParams, prox_force_n: float, prox_x_m: float,

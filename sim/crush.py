@@ -33,7 +33,7 @@ is the elastic ``k s`` while the dent holds, the plastic ``k s H / (k + H)`` whi
 
 from __future__ import annotations
 
-from sim.contact import ContactObject, pad_spring
+from sim.contact import ContactObject, block_core, pad_spring
 
 
 def pad_dent(obj: ContactObject, crush_m: float, depth_m: float) -> float:
@@ -44,7 +44,7 @@ def pad_dent(obj: ContactObject, crush_m: float, depth_m: float) -> float:
 
 
 def yield_pad_spring(obj: ContactObject, scale: float, depth_m: float,
-                     crush_m: float) -> tuple[float, float, float, float]:
+                     crush_m: float, core: bool = True) -> tuple[float, float, float, float]:
     """(elastic force N, tangent stiffness N/m, damping factor, dent m) of a pad ``depth_m``
     deep, ``scale`` engaged, whose dent so far is ``crush_m``: the skin crushed to the yield
     level, plus the core; the damping factor multiplies ``c s`` (the rate of elastic depth)."""
@@ -63,7 +63,7 @@ def yield_pad_spring(obj: ContactObject, scale: float, depth_m: float,
         ke = k * scale * rate
     else:
         rate = 0.0
-    if depth_m > obj.core_depth_m:
+    if core and depth_m > obj.core_depth_m:
         kc = obj.core_stiffness_n_per_m * scale
         force += kc * (depth_m - obj.core_depth_m)
         ke += kc
@@ -71,47 +71,79 @@ def yield_pad_spring(obj: ContactObject, scale: float, depth_m: float,
 
 
 def pad_law(obj: ContactObject, scale: float, depth_m: float,
-            crush_m: float) -> tuple[float, float, float, float]:
+            crush_m: float, core: bool = True) -> tuple[float, float, float, float]:
     """(elastic force N, tangent stiffness N/m, damping N s/m, dent m) of a pad ``depth_m``
     deep, ``scale`` engaged, whose dent so far is ``crush_m``: the yielding law, or the
-    elastic object's (``sim.contact.pad_spring``, no dent) when ``yield_force_n`` is 0."""
+    elastic object's (``sim.contact.pad_spring``, no dent) when ``yield_force_n`` is 0
+    (``core`` False: without the core, which a block meets element by element)."""
     if obj.yield_force_n > 0.0:
-        fe, ke, rate, crush_m = yield_pad_spring(obj, scale, depth_m, crush_m)
+        fe, ke, rate, crush_m = yield_pad_spring(obj, scale, depth_m, crush_m, core)
         return fe, ke, obj.damping_n_s_per_m * scale * rate, crush_m
-    fe, ke = pad_spring(obj, scale, depth_m)
+    fe, ke = pad_spring(obj, scale, depth_m, core)
     return fe, ke, obj.damping_n_s_per_m * scale, crush_m
 
 
-def _path_force(obj: ContactObject, scale: float, depth_m: float, crush_m: float) -> float:
-    return yield_pad_spring(obj, scale, depth_m, crush_m)[0]
+def block_law(obj: ContactObject, scale: float, depth_m: float, t: float, core_scale: float,
+              core_depth_m: float, core_t: float, crush_m: float
+              ) -> tuple[float, float, float, float, float]:
+    """(elastic force N, tangent stiffness N/m, damping N s/m, where t, dent m) of a pad on a
+    block: the skin's law on the pressed part (``sim.crush.pad_law`` without its core) plus
+    the core's springs ``core_stiffness_n_per_m`` on the part pressed past the core, the
+    resultant at the two forces' centre."""
+    fe, ke, ce, crush_m = pad_law(obj, scale, depth_m, crush_m, False)
+    if core_depth_m > 0.0:
+        kc = obj.core_stiffness_n_per_m * core_scale
+        fc = kc * core_depth_m
+        t = (fe * t + fc * core_t) / (fe + fc)
+        fe += fc
+        ke += kc
+    return fe, ke, ce, t, crush_m
+
+
+def pad_force(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+              by: float, scale: float, depth_m: float, t: float,
+              crush_m: float) -> tuple[float, float, float, float, float]:
+    """(elastic force N, tangent stiffness N/m, damping N s/m, where t, dent m) of a pad A->B
+    that ``sim.contact.pad_contact`` found ``depth_m`` deep, ``scale`` engaged, at ``t``: a
+    block's law (:func:`block_law`, its core met element by element) or :func:`pad_law`."""
+    if obj.kind == "block":
+        sc, dc, tc = block_core(obj, cphi, sphi, ax, ay, bx, by)
+        return block_law(obj, scale, depth_m, t, sc, dc, tc, crush_m)
+    fe, ke, ce, crush_m = pad_law(obj, scale, depth_m, crush_m)
+    return fe, ke, ce, t, crush_m
+
+
+def _path_force(obj: ContactObject, scale: float, depth_m: float, crush_m: float,
+                core: bool = True) -> float:
+    return yield_pad_spring(obj, scale, depth_m, crush_m, core)[0]
 
 
 def mean_yield_force(obj: ContactObject, s0: float, d0: float, c0: float, s1: float,
-                     d1: float) -> float:
+                     d1: float, core: bool = True) -> float:
     """The elastic force's mean as the depth goes d0 -> d1 from dent ``c0`` (the engaged
     fraction s0 -> s1 linearly), the dent following the depth: trapezoidal between the law's
     kinks (the skin met at ``c0``, the yield, the core), so its product with d1 - d0 is the
     work on the skin and core, exact at a constant fraction."""
     k = obj.stiffness_n_per_m
-    f_prev = _path_force(obj, s0, d0, c0)
+    f_prev = _path_force(obj, s0, d0, c0, core)
     dd = d1 - d0
     if dd == 0.0:
-        return 0.5 * (f_prev + _path_force(obj, s1, d1, c0))
+        return 0.5 * (f_prev + _path_force(obj, s1, d1, c0, core))
     d_yield = c0 + (obj.yield_force_n + obj.yield_hardening_n_per_m * c0) / k
     cuts = sorted(a for a in ((c0 - d0) / dd, (d_yield - d0) / dd,
                               (obj.core_depth_m - d0) / dd) if 0.0 < a < 1.0)
     total = 0.0
     a_prev = 0.0
     for a in cuts:
-        f = _path_force(obj, s0 + a * (s1 - s0), d0 + a * dd, c0)
+        f = _path_force(obj, s0 + a * (s1 - s0), d0 + a * dd, c0, core)
         total += 0.5 * (f_prev + f) * (a - a_prev)
         f_prev = f
         a_prev = a
-    return total + 0.5 * (f_prev + _path_force(obj, s1, d1, c0)) * (1.0 - a_prev)
+    return total + 0.5 * (f_prev + _path_force(obj, s1, d1, c0, core)) * (1.0 - a_prev)
 
 
 def yield_pad_work_j(s0: float, d0: float, c0: float, s1: float, d1: float, c1: float,
-                     obj: ContactObject, dt_s: float) -> float:
+                     obj: ContactObject, dt_s: float, core: bool = True) -> float:
     """Work a pad did on a yielding object over one step (``c0``/``c1`` the dents of the two
     states): the elastic force's exact mean plus the damper on the rate of elastic depth, never
     a pull, times the depth change."""
@@ -120,7 +152,7 @@ def yield_pad_work_j(s0: float, d0: float, c0: float, s1: float, d1: float, c1: 
     dd = d1 - d0
     e0 = d0 - c0 if d0 > c0 else 0.0
     e1 = d1 - c1 if d1 > c1 else 0.0
-    elastic = mean_yield_force(obj, s0, d0, c0, s1, d1)
+    elastic = mean_yield_force(obj, s0, d0, c0, s1, d1, core)
     c = obj.damping_n_s_per_m
     damping = c * 0.5 * (s0 + s1) * (e1 - e0) / dt_s if dt_s > 0.0 else 0.0
     force = max(elastic + damping, 0.0)

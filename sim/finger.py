@@ -50,7 +50,7 @@ import math
 from typing import Any
 
 from sim.contact import ContactObject, contact_object_from_config, pad_contact
-from sim.crush import pad_law
+from sim.crush import pad_force
 from sim.motor import HOLD_ZERO, MotorCommand, apply_effort_effects, friction_force_n
 from sim.params import JOINT_RATIO, FingerParams, default_finger_params
 from sim.readout import FingerOutputs, finger_energy_j, finger_outputs, tendon_stretch_m
@@ -223,9 +223,10 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
         ax0 = _PROX_PAD_START_M
         scale, depth, tt, nx, ny = pad_contact(obj, cphi, sphi, ax0, po, prox_len, po)
         if depth > 0.0:
+            fe, ke, ce, tt, crush_p = pad_force(obj, cphi, sphi, ax0, po, prox_len, po, scale,
+                                                depth, tt, crush_p)
             px = ax0 + tt * (prox_len - ax0)
             jn = -po * nx + px * ny
-            fe, ke, ce, crush_p = pad_law(obj, scale, depth, crush_p)
             force = fe - ce * jn * v_phi
             if force > 0.0:
                 f_phi += fe * jn
@@ -239,6 +240,8 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
         byd = ayd + sa * ld
         scale, depth, tt, nx, ny = pad_contact(obj, cphi, sphi, axd, ayd, bxd, byd)
         if depth > 0.0:
+            fe, ke, ce, tt, crush_d = pad_force(obj, cphi, sphi, axd, ayd, bxd, byd, scale,
+                                                depth, tt, crush_d)
             px = axd + tt * (bxd - axd)
             py = ayd + tt * (byd - ayd)
             jn_phi = -py * nx + px * ny
@@ -246,7 +249,6 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
             vn = jn_phi * v_phi
             for i in range(n):
                 vn += jl[i] * fvel[i]
-            fe, ke, ce, crush_d = pad_law(obj, scale, depth, crush_d)
             force = fe - ce * vn
             if force > 0.0:
                 fk = fe
