@@ -17,8 +17,8 @@ from teleop.control import two_layer
 SLOW_LINKS = ("links.master_controller.delay_s=1.0", "links.controller_hand.delay_s=1.0")
 
 
-def peaks(seconds: float = 15.0) -> list[float]:
-    cfg = load_config(None, list(SLOW_LINKS))
+def peaks(seconds: float = 15.0, links: tuple[str, ...] = SLOW_LINKS) -> list[float]:
+    cfg = load_config(None, list(links))
     r = run_lockstep(cfg, seconds, seed=1)
     g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
                             r.displayed_force_n, cfg)
@@ -32,6 +32,19 @@ def test_the_blind_first_grasp_is_no_harder_than_the_felt_ones() -> None:
     steady = p[2]
     assert steady > 300.0  # a real grasp
     assert all(v <= 1.1 * steady for v in p), p
+
+
+@pytest.mark.slow
+def test_once_the_touch_is_felt_the_grasps_are_those_made_without_delay(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The caps end: once the controller and the master have seen the touch, the operator
+    squeezes as he does at zero delay with no hand cap at all (a cap that never let go, e.g.
+    commands that echo no hand state, would hold every grasp at the blind grasp's level)."""
+    slow = peaks()
+    monkeypatch.setattr(two_layer, "hand_touch_cap", lambda p, m, s, command: command)
+    free = peaks(links=())
+    assert len(slow) >= 3 and len(free) >= 3
+    assert slow[2] == pytest.approx(free[2], rel=0.05), (slow, free)
 
 
 @pytest.mark.slow
