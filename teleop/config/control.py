@@ -231,6 +231,16 @@ class ContactModelConfig:
                                  "above it the estimate counts as diverged", lo=0.0, hi=1e6)
     force_rate_n_per_s: float = param(80.0, "a model update changes the rendered force at most "
                                       "this fast", unit="N/s", lo=0.0, hi=1e5)
+    touch_force_n: float = param(2.0, "trigger force at which a finger's new touch is held "
+                                 "until the operator can have felt it: a light touch, a "
+                                 "quarter of the trigger's largest force (the touch caps of "
+                                 "docs/controllers.md; at most the trigger's largest force)",
+                                 unit="N", lo=0.0, hi=100.0)
+    touch_feel_s: float = param(0.3, "the controller's cap on a new touch opens once the "
+                                "master has rendered it this long (a human's voluntary answer "
+                                "to a felt force takes 0.15-0.3 s: the trigger then shows the "
+                                "operator's answer, not his blind squeeze)", unit="s",
+                                lo=0.0, hi=10.0)
     damping_periods: float = param(1.0, "rendered contact damping, in master periods times the "
                                    "rendered stiffness (Colgate: more than half a period keeps a "
                                    "sampled spring passive)", lo=0.0, hi=100.0)

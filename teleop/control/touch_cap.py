@@ -30,33 +30,61 @@ Triple = tuple[float, float, float]
 NO_TOUCH: Triple = (math.nan, math.nan, math.nan)
 
 
-def touch_depth_rad(p: ControlParams, k_n_per_rad: float) -> float:
-    """How far beyond contact the trigger's largest force is rendered, for a model of
-    ``k_n_per_rad`` N of trigger force per rad of set-point."""
-    return p.force_max_n / k_n_per_rad
+def touch_force_n(p: ControlParams) -> float:
+    """The trigger force a new touch is held at until the operator can have felt it
+    (``contact_model.touch_force_n``, at most the trigger's largest force)."""
+    f = p.force_max_n
+    if p.contact_model is not None:
+        f = min(f, p.contact_model.touch_force_n)
+    return f
+
+
+def touch_depth_rad(p: ControlParams, k_n_per_rad: float, force_n: float | None = None) -> float:
+    """How far beyond contact ``force_n`` (default: :func:`touch_force_n`) is rendered, for a
+    model of ``k_n_per_rad`` N of trigger force per rad of set-point."""
+    return (touch_force_n(p) if force_n is None else force_n) / k_n_per_rad
+
+
+def feel_time_s(p: ControlParams) -> float:
+    """How long the master must have rendered a touch before the controller's cap opens."""
+    return p.contact_model.touch_feel_s if p.contact_model is not None else 0.0
 
 
 def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
-                     master: MasterState | None, setpoints: Triple,
-                     t_s: float) -> tuple[Triple, Triple]:
-    """Controller side: until the master echoes a command that carried the touch's model
-    (``MasterState.echo_t_s >= since``), the finger's set-point is capped at ``contact +
-    force_max_n / k``: at zero delay the echo comes back within a few ms; under delay the
-    operator, who closed on nothing he could feel, does not drive the hand through the object
-    meanwhile.  ``model``: the forwarded models (N per rad).  Returns (``since``, set-points)."""
+                     master: MasterState | None, setpoints: Triple, t_s: float,
+                     felt: Triple = NO_TOUCH) -> tuple[Triple, Triple, Triple]:
+    """Controller side: until the operator can have felt the touch, the finger's set-point is
+    capped at ``contact + touch_force_n / k``.  Felt: the master has echoed a command that
+    carried the touch's model (``MasterState.echo_t_s >= since``), and the master state is
+    ``touch_feel_s`` or more (master clock, ``felt``: when the master got that command) after
+    the master first rendered it, so the trigger position it reports is the operator's answer
+    to the force, not the blind squeeze before it.  At zero delay a first touch is held for
+    ``touch_feel_s``; under delay the operator, who closed on nothing he could feel, does not
+    drive the hand through the object meanwhile.  A model kept between grasps is not a new
+    touch.  ``model``: the forwarded models (N per rad).  Returns (``since``, ``felt``,
+    set-points)."""
     echo = master.echo_t_s if master is not None else -1.0
-    new_since, out = [], []
+    t_m = master.header.t_s if master is not None else math.nan
+    feel = feel_time_s(p)
+    new_since, new_felt, out = [], [], []
     for i in range(3):
         c, k = model[2 * i], model[2 * i + 1]
         if k <= 0.0:
             new_since.append(math.nan)
+            new_felt.append(math.nan)
             out.append(setpoints[i])
             continue
         t0 = since[i] if math.isfinite(since[i]) else t_s
         new_since.append(t0)
-        seen = echo >= t0
-        out.append(setpoints[i] if seen else min(setpoints[i], c + touch_depth_rad(p, k)))
-    return tuple(new_since), tuple(out)  # type: ignore[return-value]
+        t1 = felt[i]
+        if not math.isfinite(t1) and master is not None and echo >= t0:
+            t1 = t_m - master.echo_held_s
+        new_felt.append(t1)
+        if math.isfinite(t1) and t_m - t1 >= feel:
+            out.append(setpoints[i])
+        else:
+            out.append(min(setpoints[i], c + touch_depth_rad(p, k)))
+    return tuple(new_since), tuple(new_felt), tuple(out)  # type: ignore[return-value]
 
 
 def _valid(m: FingerModel | None) -> tuple[float, float] | None:
@@ -79,15 +107,20 @@ def touch_since(since: Triple, models: tuple[FingerModel, ...] | None, t_s: floa
 
 
 def hand_touch_cap(p: ControlParams, models: tuple[FingerModel, ...] | None, since: Triple,
-                   command: HandCommand | None) -> HandCommand | None:
+                   command: HandCommand | None, pressures: Triple | None = None,
+                   motor_rad: Triple | None = None) -> HandCommand | None:
     """Hand side: ``command`` with each finger whose touch (valid since ``since``) the
     controller had not yet seen when it computed the command (``hand_echo_t_s < since``)
-    capped at ``contact + force_max_n / k``; the same command when no cap binds."""
+    capped at ``contact + touch_force_n / k``, and, once the finger's measured peak pressure
+    (``pressures``) renders ``touch_force_n`` or more, held where its motor is
+    (``motor_rad``, joint side): the model's stiffness is only a prior on a first touch, the
+    pressure is measured; the same command when no cap binds."""
     if (command is None or models is None or command.mode != HandMode.POSITION
             or p.force_per_pressure_n <= 0.0):
         return command
     sp = list(command.finger_setpoint_rad)
     bound = False
+    p_touch = touch_force_n(p) / p.force_per_pressure_n
     for i in range(min(3, len(models), len(sp))):
         if not math.isfinite(since[i]) or command.hand_echo_t_s >= since[i]:
             continue
@@ -95,6 +128,8 @@ def hand_touch_cap(p: ControlParams, models: tuple[FingerModel, ...] | None, sin
         if m is None:
             continue
         cap = m[0] + touch_depth_rad(p, m[1] * p.force_per_pressure_n)
+        if pressures is not None and motor_rad is not None and pressures[i] >= p_touch:
+            cap = min(cap, motor_rad[i])
         if sp[i] > cap:
             sp[i], bound = cap, True
     if not bound:

@@ -175,6 +175,8 @@ class ControllerStoreState:
     #: per finger: ``t_s`` of the first command that carried this touch's contact model to the
     #: master (nan: no model), for :func:`unseen_touch_cap`
     model_since: Triple = (math.nan, math.nan, math.nan)
+    #: per finger: master time the master got that touch's model (nan: not yet)
+    model_felt: Triple = (math.nan, math.nan, math.nan)
 
 
 def init_controller(p: ControlParams) -> ControllerStoreState:
@@ -251,11 +253,11 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     seq = s.seq + 1
     sent_m, sent_h = s.sent_to_master_j + to_m, s.sent_to_hand_j + to_h
     model = forward_model(p, hand)
-    since, sp = unseen_touch_cap(s.model_since, p, model, master, sp, t_s)
+    since, felt, sp = unseen_touch_cap(s.model_since, p, model, master, sp, t_s, s.model_felt)
     fc, hc = make_commands(p, seq, t_s, force, sent_m, sp, sent_h, model, hand)
     ns = ControllerStoreState(ledger=led, rx_master=rx_m, rx_hand=rx_h, sent_to_master_j=sent_m,
                               sent_to_hand_j=sent_h, transparency=ts, seq=seq, adapt=adapt,
-                              model_since=since)
+                              model_since=since, model_felt=felt)
     return ns, ControllerOutput(force_command=fc, hand_command=hc, ledger=led,
                                 max_pressure=mp, force_desired_n=raw, force_gain=adapt.gain,
                                 round_trip_s=adapt.round_trip_s)
@@ -318,10 +320,15 @@ def desired_setpoints(command: HandCommand | None, hold: Triple) -> Triple:
     return sp  # type: ignore[return-value]
 
 
-def slew(want: Triple, prev: Triple, max_step: float) -> Triple:
-    """``want`` reached from ``prev`` by steps of at most ``max_step`` per finger."""
-    return tuple(b + min(max(a - b, -max_step), max_step)  # type: ignore[return-value]
-                 for a, b in zip(want, prev, strict=True))
+def slew(want: Triple, prev: Triple, max_step: float, x: Triple | None = None) -> Triple:
+    """``want`` reached from ``prev`` by steps of at most ``max_step`` per finger; a set-point
+    ahead of its motor (``x``) that is to come back drops to the motor at once (the servo
+    spring's energy only falls on the way)."""
+    if x is None:
+        return tuple(b + min(max(a - b, -max_step), max_step)  # type: ignore[return-value]
+                     for a, b in zip(want, prev, strict=True))
+    return tuple(b + min(max(a - b, -max(max_step, b - m)), max_step)  # type: ignore[return-value]
+                 for a, b, m in zip(want, prev, x, strict=True))
 
 
 def finger_contacts(fingers: tuple[FingerState, ...]) -> tuple[bool, bool, bool]:
@@ -415,7 +422,7 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)
     k, tmax, kt = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm, \
         p.tendon_stiffness_nm_per_rad
-    want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s)
+    want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s, x)
     y, limited = reserve_project(want, x, tank - p.min_j, k, tmax, kt)
     held = hand_reservation_j(y, x, k, tmax, kt)
     send = quantum_j(tank - max(hand_hold_j(p), held), p.reserve_j, p.transfer_fraction)
@@ -444,7 +451,8 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     that was in force over the sample, the measured motor angles and peak pressures."""
     step = step_hand_object if p.hand_port == "object" else step_hand_servo
     if p.contact_model is not None:
-        command = hand_touch_cap(p, s.models, s.touch_since, command)
+        command = hand_touch_cap(p, s.models, s.touch_since, command,
+                                 max_pressures(fingers, p), measure_hand(s, fingers))
     ns, out = step(s, p, fingers, command, dt_s)
     if p.contact_model is None or s.setpoint_prev is None:
         return ns, out

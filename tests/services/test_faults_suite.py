@@ -126,7 +126,8 @@ def test_safe_state_open_opens_the_hand(cfg: TeleopConfig) -> None:
     open_cfg = replace(cfg, safety=replace(cfg.safety, hand_safe_state="open"))
     _, r = _link_cut(open_cfg)
     t = r.t_s
-    assert r.hand_setpoint_rad[t < 1.2][-1].min() > 0.5
+    # closed on the object before the cut (a first touch is held light for touch_feel_s)
+    assert r.hand_setpoint_rad[t < 1.2][-1].min() > 0.3
     assert np.all(r.hand_setpoint_rad[(t > 1.6) & (t < 3.19)] == 0.0)
 
 

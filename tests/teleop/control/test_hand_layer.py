@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
+import pytest
+
 from teleop.config.control import ControllerConfig
 from teleop.control import two_layer
 from teleop.control.interface import control_params
@@ -90,3 +92,20 @@ def test_no_refund_in_contact_only_the_damping_credit() -> None:
 def test_refund_can_be_switched_off() -> None:
     assert math.isclose(_run(touching=False, refund=False),
                         3 * P.servo_damping_nm_s_per_rad * 0.02 ** 2 / 0.025, rel_tol=1e-9)
+
+
+def test_a_set_point_ahead_of_its_motor_drops_to_it_at_once() -> None:
+    """Coming back, a set-point that ran ahead of a lagging motor drops to the motor in one
+    sample (the servo spring's energy only falls); below the motor, and going out, the
+    servo's slew rate holds."""
+    step = 0.1
+    # ahead of the motor (at 0.3) and commanded back to 0.2: to the motor, then slewed on
+    assert two_layer.slew((0.2,) * 3, (1.0,) * 3, step, (0.3,) * 3) == pytest.approx((0.3,) * 3)
+    # commanded back to 0.5, above the motor: there at once
+    assert two_layer.slew((0.5,) * 3, (1.0,) * 3, step, (0.3,) * 3) == pytest.approx((0.5,) * 3)
+    # already at or below the motor: the slew rate
+    assert two_layer.slew((0.0,) * 3, (0.3,) * 3, step, (0.5,) * 3) == pytest.approx((0.2,) * 3)
+    # closing: the slew rate, wherever the motor
+    assert two_layer.slew((2.0,) * 3, (1.0,) * 3, step, (0.3,) * 3) == pytest.approx((1.1,) * 3)
+    # without the motor angle (the servo-spring layer, tdpa): the slew rate both ways
+    assert two_layer.slew((0.2,) * 3, (1.0,) * 3, step) == pytest.approx((0.9,) * 3)
