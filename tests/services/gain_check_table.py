@@ -48,8 +48,8 @@ def main() -> None:
         for name, g, on in rows:
             obj, paid_off, *_ = pool.result((*on, OFF))
             obj_on, paid, yielding, unseen, low = pool.result(on)
-            took = f"{obj:.4f} J" if obj == obj_on else f"{obj:.4f} / {obj_on:.4f} J"
-            print(f"| {name} | {g:g} | {took} | {paid_off:.4f} J | {paid:.4f} J "
+            took = f"{obj:.4f}" if f"{obj:.4f}" == f"{obj_on:.4f}" else f"{obj:.4f} / {obj_on:.4f}"
+            print(f"| {name} | {g:g} | {took} J | {paid_off:.4f} J | {paid:.4f} J "
                   f"| {yielding} / {unseen} / {low} |", flush=True)
 
 
