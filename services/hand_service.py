@@ -102,6 +102,7 @@ class HandService:
         self._model_fallbacks = 0
         self._yielding = 0
         self._unseen = 0
+        self._cells_low = 0
         self.wd_params = hand_command_watchdog(cfg, watchdogs)
         self.wd = WatchdogState()
         self.events: list[str] = []
@@ -233,6 +234,11 @@ class HandService:
                                "tactile cells (dead cells, or a contact off the pads); further "
                                "advance charged at the servo's torque")
         self._unseen = out.unseen
+        if out.cells_low > self._cells_low:
+            self.events.append(f"cells read low: {out.cells_low} finger(s) read less contact "
+                               "force than the servo's load implies (tactile gain below its "
+                               "margin); their work charged at the measured ratio")
+        self._cells_low = out.cells_low
         if out.limited:
             if not self._was_limited:
                 self.events.append("passivity layer limiting the set-points")
@@ -258,7 +264,7 @@ class HandService:
             model_fallbacks=float(out.model_fallbacks),
             servo_fault_trips=float(reading.servo_fault_trips),
             servo_safe=float(reading.servo_safe), yielding=float(out.yielding),
-            unseen_contact=float(out.unseen))
+            unseen_contact=float(out.unseen), cells_low=float(out.cells_low))
 
     def close(self) -> None:
         """Go safe and release the hand."""

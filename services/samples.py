@@ -102,6 +102,7 @@ class HandSample:
     servo_safe: float = 0.0  # 1 while held safe because of servo error bits
     yielding: float = 0.0  # fingers whose contact yields (tactile force not trusted there)
     unseen_contact: float = 0.0  # fingers stalled on a contact their cells do not see
+    cells_low: float = 0.0  # fingers whose cells read less than the servo's load implies
 
 
 Sample = MasterSample | ControllerSample | HandSample

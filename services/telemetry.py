@@ -26,8 +26,9 @@ from teleop.recording import RecordingWriter
 from teleop.transport.safe_decoder import RejectCounts
 
 #: words that make an event an alarm: a contact the tactile cells are not trusted on (raised
-#: once per contact; printed by a live service as well as logged)
-ALARM_WORDS = ("yielding", "unseen contact")
+#: once per contact), or cells found reading low (once: latched); printed by a live service as
+#: well as logged
+ALARM_WORDS = ("yielding", "unseen contact", "cells read low")
 
 
 def is_alarm(text: str) -> bool:

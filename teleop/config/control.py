@@ -134,6 +134,31 @@ class TactileConfig:
                                  "link's curl; 0.385 rad at most on the simulated hand: "
                                  "measure yours closing on nothing)",
                                  unit="rad", lo=0.0, hi=3.0)
+    load_torque_nm_per_unit: float = param(0.00347, "gain cross-check: joint torque per unit "
+                                           "of the servo's present load (MX-28: 2.5 N m at "
+                                           "1023 units, x 1.42; calibrate on the real hand)",
+                                           unit="N m", lo=0.0, hi=1.0)
+    base_spring_nm_per_rad: float = param(0.0624, "gain cross-check: the base joint's spring "
+                                          "(Table 4.2 fit, sim/params.py)", unit="N m/rad",
+                                          lo=0.0, hi=100.0)
+    base_preload_rad: float = param(1.957, "gain cross-check: the base spring's preload "
+                                    "against the open stop", unit="rad", lo=0.0, hi=10.0)
+    gain_check_window_s: float = param(0.2, "gain cross-check: how long a grasp must stand "
+                                       "still for one comparison of the cells' contact moment "
+                                       "with the servo's load (0: check off)", unit="s",
+                                       lo=0.0, hi=10.0)
+    gain_check_still_rad: float = param(0.02, "gain cross-check: motor (joint side) and "
+                                        "proximal encoder stay this close to where the window "
+                                        "began", unit="rad", lo=0.0, hi=1.0)
+    gain_check_damping_nm_s_per_rad: float = param(4.5, "gain cross-check: the servo's "
+                                                   "viscous friction at the joint, upper bound "
+                                                   "(Table 4.1's largest: ~900 load units per "
+                                                   "shaft rad/s x 1.42)", unit="N m s/rad",
+                                                   lo=0.0, hi=1e3)
+    gain_check_tolerance_nm: float = param(0.15, "gain cross-check: tolerance on the contact "
+                                           "moment the servo's load implies (Coulomb friction, "
+                                           "load noise, the spring's and the lever arms' "
+                                           "model error)", unit="N m", lo=0.0, hi=100.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -174,6 +174,7 @@ class HandOutput:
     model_fallbacks: int = 0  # contact estimates dropped as diverged so far (all fingers)
     yielding: int = 0  # fingers whose contact yields (charged at the servo's torque)
     unseen: int = 0  # fingers stalled on a contact the cells do not see (charged the same)
+    cells_low: int = 0  # fingers whose cells read lower than the servo's load implies
 
 
 @dataclass(frozen=True, slots=True)

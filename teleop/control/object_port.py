@@ -68,6 +68,13 @@ class TactileModel:
     stall_window_rad: float = 0.1
     stall_ratio: float = 0.3
     free_curl_rad: float = 0.45
+    load_torque_nm_per_unit: float = 0.00347
+    base_spring_nm_per_rad: float = 0.0624
+    base_preload_rad: float = 1.957
+    gain_check_window_s: float = 0.2
+    gain_check_still_rad: float = 0.02
+    gain_check_damping_nm_s_per_rad: float = 4.5
+    gain_check_tolerance_nm: float = 0.15
 
 
 @fast_init

@@ -34,6 +34,7 @@ from teleop.control.energy_tank import (
     split_work,
     tlc_damping,
 )
+from teleop.control.gain_check import UNCHECKED, GainTrack, check_gains
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
 from teleop.control.memo import last_result
 from teleop.control.model_render import (
@@ -280,6 +281,7 @@ class HandPortState:
     models: tuple[FingerModel, ...] | None = None  # contact model per finger (rendering on)
     yields: tuple[YieldTrack, ...] = (NO_CONTACT, NO_CONTACT, NO_CONTACT)  # yield guard
     stalls: tuple[StallTrack, ...] = (FREE, FREE, FREE)  # unseen-contact guard
+    gains: tuple[GainTrack, ...] = (UNCHECKED, UNCHECKED, UNCHECKED)  # gain cross-check
     #: per finger: hand time its contact model became valid (nan: none), for the hand's
     #: touch cap (:func:`teleop.control.touch_cap.hand_touch_cap`)
     touch_since: Triple = NO_TOUCH
@@ -397,6 +399,9 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     x = measure_hand(s, fingers)
     y_prev = s.setpoint_prev if s.setpoint_prev is not None else x
     pads, works = track_fingers(p.tactile, s.pads, fingers[:3])
+    # cells found reading low against the servo's load: their work scaled up, the earlier
+    # work re-charged (teleop.control.gain_check; nothing changes while none is)
+    gains, works, recharge = check_gains(p.tactile, s.gains, pads, fingers[:3], works, dt_s)
     yields = guard_fingers(p, s, pads, x)
     stalls = stall_fingers(p, s, pads, fingers[:3], x)
     blind = tuple(g.yielding or h.stalled for g, h in zip(yields, stalls, strict=False))
@@ -416,6 +421,9 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     if charge > cap - crush:
         charge = cap - crush
         net = margin_net_j(p.tactile, paid + charge)
+    if recharge > 0.0:  # past samples' work at the raised scale: outside the one-sample cap
+        before, net = margin_charge_j(p.tactile, net), net + recharge
+        charge += margin_charge_j(p.tactile, net) - before
     charge += crush
     out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
@@ -435,10 +443,11 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited, spring_energy_j=held,
                      yielding=sum(1 for g in yields if g.yielding),
-                     unseen=sum(1 for h in stalls if h.stalled))
+                     unseen=sum(1 for h in stalls if h.stalled),
+                     cells_low=sum(1 for g in gains if g.low))
     return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx, pads=pads,
                          object_net_j=net, held_j=held, models=s.models, yields=yields,
-                         stalls=stalls), out
+                         stalls=stalls, gains=gains), out
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],

@@ -1,5 +1,5 @@
-"""The yielding- and unseen-contact guards on the simulated hand, lockstep, judged by the
-physical audit.
+"""The yielding- and unseen-contact guards and the tactile gain cross-check on the simulated
+hand, lockstep, judged by the physical audit.
 
 A cylinder that crushes at 5 N under each pad (``hand.sim.object.yield_force_n``) and tactile
 cells reading a third of the true force (``hand.sim.tactile_gain``): the first grasp dents the
@@ -7,7 +7,9 @@ object for good, so every joule the pads put in stays there.  The hand port's bo
 the object receives no more than the hand's tank has paid (its ledger's net charge); the
 object-port work comes from the simulator's own audit, never from the controller.
 Cells that read nothing at all (``tactile_gain = 0``: dead, or a contact off the pads) are the
-unseen-contact guard's case (:mod:`teleop.control.stall_guard`).
+unseen-contact guard's case (:mod:`teleop.control.stall_guard`); cells reading low on a contact
+that neither yields flat nor goes unseen (a work-hardening skin) the gain cross-check's
+(:mod:`teleop.control.gain_check`).
 """
 
 from __future__ import annotations
@@ -25,13 +27,16 @@ DEAD = ("hand.sim.object.yield_force_n=5", "hand.sim.tactile_gain=0")
 GAINS = (0.001, 0.01, 0.03, 0.1)
 HARDENING = ("hand.sim.object.yield_force_n=5", "hand.sim.object.yield_hardening_n_per_m=2000",
              "hand.sim.tactile_gain=0.333")
+HIGH = (*HARDENING[:2], "hand.sim.tactile_gain=3")
+GAIN_CHECK_OFF = "controller.tactile.gain_check_window_s=0"
+YIELD_OFF = (*CRUSH, "controller.tactile.yield_stiffness_ratio=0")
 
 #: every grasp this module judges (override tuples), run together on two processes
-GRASPS = (CRUSH, (*CRUSH, "controller.tactile.yield_stiffness_ratio=0"), DEAD,
+GRASPS = (CRUSH, YIELD_OFF, (*YIELD_OFF, GAIN_CHECK_OFF), DEAD,
           (*DEAD, "controller.tactile.stall_window_rad=0"),
           *(("hand.sim.tactile_gain=0", f"master.virtual.style={s}") for s in ("soft", "hard")),
           *(("hand.sim.object.yield_force_n=5", f"hand.sim.tactile_gain={g}") for g in GAINS),
-          HARDENING)
+          HARDENING, (*HARDENING, GAIN_CHECK_OFF), HIGH)
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +55,7 @@ def first_grasp(pool: JobPool):
 @pytest.mark.slow
 def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pays(
         first_grasp) -> None:
-    obj, paid, flagged, unseen = first_grasp(*CRUSH)
+    obj, paid, flagged, unseen, _ = first_grasp(*CRUSH)
     assert obj > 0.1  # the pads did crush it
     assert flagged >= 1 and unseen == 0  # the cells see the contact, they read it low
     assert paid >= obj
@@ -58,11 +63,23 @@ def test_cells_reading_low_on_a_crushing_object_raise_the_alarm_and_the_tank_pay
 
 @pytest.mark.slow
 def test_without_the_guard_the_tank_pays_less_than_the_object_took(first_grasp) -> None:
-    """The mutant kept as a test: the guard off, the same grasp is charged a fraction of
-    the work the object really took (the bound broken, silently)."""
-    obj, paid, flagged, _ = first_grasp(*CRUSH, "controller.tactile.yield_stiffness_ratio=0")
-    assert flagged == 0
+    """The mutant kept as a test: the guard off (and the gain cross-check, which would
+    catch it too: next test), the same grasp is charged a fraction of the work the object
+    really took (the bound broken, silently)."""
+    obj, paid, flagged, _, low = first_grasp(*YIELD_OFF, GAIN_CHECK_OFF)
+    assert flagged == 0 and low == 0
     assert np.isfinite(paid) and paid < 0.5 * obj
+
+
+@pytest.mark.slow
+def test_with_the_yield_guard_off_the_gain_check_still_catches_the_crushing_grasp(
+        first_grasp) -> None:
+    """The two checks overlap: the crushing grasp is held still at its end, and the gain
+    cross-check finds its cells reading a third (measured 2026-11-26: 0.52 J paid for
+    0.26 J)."""
+    obj, paid, flagged, _, low = first_grasp(*YIELD_OFF)
+    assert flagged == 0 and low >= 1
+    assert paid >= obj
 
 
 @pytest.mark.slow
@@ -71,7 +88,7 @@ def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays(
     """Cells reading nothing: the fingers stall on the cylinder with silent cells, the
     unseen-contact guard flags them and charges their further advance at the servo's torque
     (measured 2026-11-26: object 0.30 J, tank paid 14.5 J, 3 fingers)."""
-    obj, paid, _, unseen = first_grasp(*DEAD)
+    obj, paid, _, unseen, _ = first_grasp(*DEAD)
     assert obj > 0.1
     assert unseen >= 1
     assert paid >= obj
@@ -80,7 +97,7 @@ def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays(
 @pytest.mark.slow
 def test_without_the_stall_guard_dead_cells_are_charged_nothing(first_grasp) -> None:
     """The mutant kept as a test: the guard off, the crushing grasp costs the tank nothing."""
-    obj, paid, _, unseen = first_grasp(*DEAD, "controller.tactile.stall_window_rad=0")
+    obj, paid, _, unseen, _ = first_grasp(*DEAD, "controller.tactile.stall_window_rad=0")
     assert unseen == 0
     assert obj > 0.1 and paid < 0.5 * obj
 
@@ -90,7 +107,7 @@ def test_without_the_stall_guard_dead_cells_are_charged_nothing(first_grasp) -> 
 def test_dead_cells_on_an_elastic_object_raise_the_alarm(first_grasp, style: str) -> None:
     """An elastic cylinder, every operator: the alarm comes whatever the object does (the
     operator feels nothing and squeezes on; the tank pays the servo's worst case)."""
-    obj, paid, flagged, unseen = first_grasp("hand.sim.tactile_gain=0",
+    obj, paid, flagged, unseen, _ = first_grasp("hand.sim.tactile_gain=0",
                                              f"master.virtual.style={style}")
     assert unseen >= 1 and flagged == 0
     assert paid >= obj
@@ -105,7 +122,7 @@ def test_at_any_gain_one_guard_or_the_other_raises_the_alarm_and_the_tank_pays(
     see it read the yield's flat chords (the yield guard); either way the tank pays at
     least what the object took (measured 2026-11-26 at gains 0-0.2: 9.0-14.5 J paid for
     0.29-0.30 J)."""
-    obj, paid, flagged, unseen = first_grasp("hand.sim.object.yield_force_n=5",
+    obj, paid, flagged, unseen, _ = first_grasp("hand.sim.object.yield_force_n=5",
                                              f"hand.sim.tactile_gain={gain}")
     assert obj > 0.1
     assert flagged + unseen >= 1
@@ -113,13 +130,36 @@ def test_at_any_gain_one_guard_or_the_other_raises_the_alarm_and_the_tank_pays(
 
 
 @pytest.mark.slow
-def test_a_work_hardening_object_with_cells_reading_low_is_not_covered(first_grasp) -> None:
-    """Outside what the guards cover (measured, kept so a change shows; docs/controllers.md):
-    a skin whose yield level rises 2 N per mm of dent keeps its chords steeper than a fifth
-    of the elastic ones, so with cells reading a third nothing is flagged and the tank pays
-    about half of the plastic work (0.058 J for 0.10 J).  The deficit is bounded by the
-    object itself (the dent stops once its yield level reaches the servo's force) but no
-    bound is stated for it."""
-    obj, paid, flagged, unseen = first_grasp(*HARDENING)
-    assert flagged == 0 and unseen == 0
-    assert 0.0 < paid < obj
+def test_a_work_hardening_object_with_cells_reading_low_raises_the_alarm_and_the_tank_pays(
+        first_grasp) -> None:
+    """A skin whose yield level rises 2 N per mm of dent keeps its chords steeper than a
+    fifth of the elastic ones, so the yield guard sees nothing; the gain cross-check
+    (:mod:`teleop.control.gain_check`) finds the held grasp's cells reading a third of the
+    moment the servo's load implies, flags the fingers and re-charges their work at the
+    measured ratio: the tank pays at least the plastic work (docs/controllers.md's table)."""
+    obj, paid, flagged, unseen, low = first_grasp(*HARDENING)
+    assert obj > 0.05  # the pads did dent it
+    assert flagged == 0 and unseen == 0  # neither of the other guards sees it
+    assert low >= 1
+    assert paid >= obj
+
+
+@pytest.mark.slow
+def test_without_the_gain_check_the_hardening_object_is_under_paid(first_grasp) -> None:
+    """The mutant kept as a test (the check off, ``gain_check_window_s = 0``): nothing is
+    flagged and the tank pays about half of the plastic work (measured 2026-11-26: 0.058 J
+    for 0.10 J), the gap the check closes."""
+    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, GAIN_CHECK_OFF)
+    assert flagged == 0 and unseen == 0 and low == 0
+    assert 0.0 < paid < 0.75 * obj
+
+
+@pytest.mark.slow
+def test_cells_reading_high_on_the_hardening_object_over_pay(first_grasp) -> None:
+    """The other side of the calibration assumption: cells reading 3x the force.  Nothing is
+    flagged (the check looks for cells reading low), the tank pays more than the object took
+    (the estimate is scaled up: conservative), and the operator, feeling the grasp 3x
+    harder, dents the object less."""
+    obj, paid, flagged, unseen, low = first_grasp(*HIGH)
+    assert low == 0 and unseen == 0
+    assert paid >= obj > 0.0
