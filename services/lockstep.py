@@ -88,7 +88,7 @@ class LockstepResult:
     # passivity layer and watchdogs
     master_limited_count: Array  # cumulative ticks the master's layer limited the force
     hand_limited_count: Array  # cumulative ticks the hand's layer moved the set-point
-    watchdog_trips: int
+    watchdog_trips: int  # all three services' watchdogs
     # physical energy audit (sim.operator / sim.audit: from the simulated physics, not from
     # controller code); cumulative; nan when a backend has no audit (real hardware, fakes)
     audit_operator_delivered_j: Array | None = None
@@ -98,6 +98,7 @@ class LockstepResult:
     energy_scale: float = 1.0  # hand-side joules per master-side joule (power scaling)
     initial_master_j: float = 0.0
     initial_hand_j: float = 0.0
+    master_watchdog_trips: int = 0  # of which the master's (no force command)
 
     @property
     def energy_delivered_j(self) -> Array:
@@ -423,6 +424,7 @@ def _result(cfg: TeleopConfig, duration_s: float, rows: _Recorder, m_svc: Master
         dropped_hand_command=fill(H[:, hp + 34]), dropped_hand_state=fill(C[:, 14]),
         master_limited_count=mc["limit_count"], hand_limited_count=fill(H[:, hp + 35]),
         watchdog_trips=m_svc.wd.trips + c_svc.wd.trips + h_svc.wd.trips,
+        master_watchdog_trips=m_svc.wd.trips,
         audit_operator_delivered_j=audit[:, 0], audit_operator_taken_j=audit[:, 1],
         audit_environment_delivered_j=audit[:, 2], audit_environment_taken_j=audit[:, 3],
         energy_scale=cfg.controller.tank.energy_scale,

@@ -71,8 +71,8 @@ def hand_command_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogPa
     s = cfg.safety
     timeout = s.command_timeout_s
     if timeout is None:
-        timeout = (4.0 / cfg.controller.rate_hz + 1.0 / cfg.hand.state_rate_hz
-                   + _link_delay_s(cfg, "controller_hand", True))
+        timeout = (max(4.0 / cfg.controller.rate_hz + 1.0 / cfg.hand.state_rate_hz,
+                       s.min_timeout_s) + _link_delay_s(cfg, "controller_hand", True))
     return WatchdogParams(timeout, down_ramp_s=0.0, up_ramp_s=s.force_ramp_s, enabled=enabled)
 
 
@@ -81,7 +81,8 @@ def master_force_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogPa
     s = cfg.safety
     timeout = s.state_timeout_s
     if timeout is None:
-        timeout = 4.0 / cfg.controller.rate_hz + _link_delay_s(cfg, "master_controller", False)
+        timeout = (max(4.0 / cfg.controller.rate_hz, s.min_timeout_s)
+                   + _link_delay_s(cfg, "master_controller", False))
     return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
                           enabled=enabled)
 
@@ -91,6 +92,7 @@ def controller_state_watchdog(cfg: TeleopConfig, enabled: bool = True) -> Watchd
     s = cfg.safety
     timeout = s.state_timeout_s
     if timeout is None:
-        timeout = 4.0 / cfg.hand.state_rate_hz + _link_delay_s(cfg, "controller_hand", False)
+        timeout = (max(4.0 / cfg.hand.state_rate_hz, s.min_timeout_s)
+                   + _link_delay_s(cfg, "controller_hand", False))
     return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
                           enabled=enabled)

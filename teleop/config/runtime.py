@@ -17,6 +17,11 @@ class SafetyConfig:
     state_timeout_s: float | None = param(
         None, "no valid hand state for this long and the master force ramps to zero (unset: "
         "4x the state period plus the configured delay)", unit="s", lo=0.0, hi=60.0)
+    min_timeout_s: float = param(0.025, "shortest silence a watchdog with an unset timeout "
+                                 "waits before it trips (plus the link's delay): four periods "
+                                 "at 1 kHz (4 ms) trip on four lost messages in a row, 1.6 "
+                                 "times a second at 20 % loss, and on the 5-40 ms stalls of a "
+                                 "loaded machine", unit="s", lo=0.0, hi=60.0)
     hand_safe_state: str = param("hold", "what the hand does when commands stop",
                                  choices=("hold", "open"))
     force_ramp_s: float = param(0.2, "time the master force takes to ramp to zero", unit="s",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import pytest
 
+from services.lockstep import run_lockstep
 from services.watchdog import (
     WatchdogParams,
     WatchdogState,
@@ -52,8 +53,19 @@ def test_lost_liveliness_zeroes_at_once() -> None:
 def test_default_timeouts_follow_period_and_delay() -> None:
     cfg = load_config(None, ["links.master_controller.delay_s=0.1",
                              "links.controller_hand.delay_s=0.05"])
-    assert master_force_watchdog(cfg).timeout_s == pytest.approx(0.004 + 0.1)
+    assert master_force_watchdog(cfg).timeout_s == pytest.approx(0.025 + 0.1)  # the floor
     assert hand_command_watchdog(cfg).timeout_s == pytest.approx(0.004 + 0.025 + 0.05)
     assert hand_command_watchdog(cfg).down_ramp_s == 0.0  # the hand holds at once
     cfg2 = load_config(None, ["safety.command_timeout_s=0.5"])
     assert hand_command_watchdog(cfg2).timeout_s == 0.5
+
+
+@pytest.mark.slow
+def test_lost_messages_at_20_percent_do_not_trip_the_master_watchdog() -> None:
+    """Four lost force commands in a row at 1 kHz happen 1.6 times a second at 20 % loss; the
+    master's watchdog waits ``min_timeout_s`` (25 ms: 20 in a row, ~1e-14) so lost messages
+    do not ramp the force out.  The floor removed (the mutant kept): it trips."""
+    loss = ["links.master_controller.loss=0.2", "links.controller_hand.loss=0.2"]
+    assert run_lockstep(load_config(None, loss), 6.0, seed=1).master_watchdog_trips == 0
+    bare = run_lockstep(load_config(None, [*loss, "safety.min_timeout_s=0"]), 6.0, seed=1)
+    assert bare.master_watchdog_trips >= 3
