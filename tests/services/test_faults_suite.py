@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import logging
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -89,15 +90,30 @@ def test_json_document_totals(suite: SuiteResult) -> None:
     json.dumps(doc, allow_nan=False)
 
 
-def _link_cut(cfg: TeleopConfig) -> tuple[LockstepResult, LockstepResult]:
+@pytest.fixture(scope="module")
+def base(cfg: TeleopConfig) -> LockstepResult:
+    """The fault-free 4 s run the link-cut and controller-kill tests compare with (made once;
+    the kill test reads its first 3.5 s, which are the rows of a 3.5 s run bit for bit:
+    ``test_a_shorter_run_is_the_longer_runs_first_rows``)."""
+    return run_lockstep(cfg, 4.0, seed=1)
+
+
+def _link_cut(cfg: TeleopConfig) -> LockstepResult:
     sc = next(s for s in F.scenarios(True) if s.name == "link_cut")
-    base = run_lockstep(cfg, 4.0, seed=1)
-    return base, run_lockstep(cfg, 4.0, seed=1, hook=F._hook(sc, F._Probe()))
+    return run_lockstep(cfg, 4.0, seed=1, hook=F._hook(sc, F._Probe()))
+
+
+def test_a_shorter_run_is_the_longer_runs_first_rows(cfg: TeleopConfig,
+                                                      base: LockstepResult) -> None:
+    short = run_lockstep(cfg, 1.5, seed=1)
+    n = short.t_s.size
+    for name in ("t_s", "hand_setpoint_rad", "displayed_force_n", "master_force_desired_n"):
+        assert np.array_equal(getattr(short, name), getattr(base, name)[:n]), name
 
 
 def test_link_cut_hand_holds_master_force_ramps_out_and_back_without_a_jump(
-        cfg: TeleopConfig) -> None:
-    base, r = _link_cut(cfg)
+        cfg: TeleopConfig, base: LockstepResult) -> None:
+    r = _link_cut(cfg)
     t = r.t_s
     # before the cut: identical to the baseline
     assert np.array_equal(r.hand_setpoint_rad[t < 1.2], base.hand_setpoint_rad[t < 1.2])
@@ -121,10 +137,9 @@ def test_link_cut_hand_holds_master_force_ramps_out_and_back_without_a_jump(
 
 
 def test_safe_state_open_opens_the_hand(cfg: TeleopConfig) -> None:
-    from dataclasses import replace
 
     open_cfg = replace(cfg, safety=replace(cfg.safety, hand_safe_state="open"))
-    _, r = _link_cut(open_cfg)
+    r = _link_cut(open_cfg)
     t = r.t_s
     # closed on the object before the cut (a first touch is held light for touch_feel_s)
     assert r.hand_setpoint_rad[t < 1.2][-1].min() > 0.3
@@ -179,11 +194,11 @@ def test_rejections_reach_the_dashboard(tmp_path, cfg: TeleopConfig) -> None:  #
 
 
 def test_controller_kill_holds_at_once_and_the_restart_resumes_without_a_jump(
-        cfg: TeleopConfig) -> None:
+        cfg: TeleopConfig, base: LockstepResult) -> None:
     sc = next(s for s in F.scenarios(True) if s.name == "controller_restart")
-    base = run_lockstep(cfg, 3.5, seed=1)
     r = run_lockstep(cfg, 3.5, seed=1, hook=F._hook(sc, F._Probe()))
     t = r.t_s
+    base = _first_rows(base, t.size)  # the fault-free run over the same 3.5 s
     hand_dt = 1.0 / cfg.hand.state_rate_hz
     # liveliness gone: the hand holds from its first tick after the kill (no timeout wait),
     # the grasp force on the trigger goes at once
@@ -200,6 +215,14 @@ def test_controller_kill_holds_at_once_and_the_restart_resumes_without_a_jump(
         1.5 * np.abs(np.diff(base.displayed_force_n)).max()
     assert recovery_time_s(t, r.hand_setpoint_rad, base.hand_setpoint_rad, 2.5) < 0.5
     assert r.energy_generated_j == 0.0
+
+
+def _first_rows(res: LockstepResult, n: int) -> LockstepResult:
+    """``res`` with every per-tick series cut to its first ``n`` rows."""
+    rows = res.t_s.size
+    return replace(res, **{f.name: getattr(res, f.name)[:n] for f in fields(res)
+                           if isinstance(getattr(res, f.name), np.ndarray)
+                           and getattr(res, f.name).shape[:1] == (rows,)})
 
 
 def test_passivity_is_judged_by_the_physical_audit(suite: SuiteResult) -> None:
