@@ -102,6 +102,11 @@ class HandSample:
     servo_safe: float = 0.0  # 1 while held safe because of servo error bits
     yielding: float = 0.0  # fingers whose contact yields (tactile force not trusted there)
     unseen_contact: float = 0.0  # fingers stalled on a contact their cells do not see
+    # when the hand was really read and the set-points really written (midpoint of the
+    # backend's read / apply call, on the loop's clock): ``t_s`` is the tick's deadline.
+    # ``t_s`` itself without a clock (lockstep, virtual time); NaN: nothing written this tick
+    read_t_s: float = NAN
+    write_t_s: float = NAN
 
 
 Sample = MasterSample | ControllerSample | HandSample

@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from teleop.diagnose import diagnose as diagnose_mod
-from teleop.diagnose import select
+from teleop.diagnose import multistart, select
 from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
 from teleop.diagnose.model import AxisNominal
-from teleop.diagnose.multistart import restarts
+from teleop.diagnose.fit import ModelFit
+from teleop.diagnose.multistart import lowest, restarts
 
 sys.path.insert(0, str(Path(__file__).parent))
 
@@ -80,3 +83,25 @@ def test_one_chosen_effect_is_also_checked_backwards(
     waves = [float(k.split(":")[2]) for p in d.proposed for k in p.keys
              if k.startswith("term:sin:")]
     assert any(abs(w / c.wavenumber - 1) < 0.02 for w in waves), (waves, c.wavenumber)
+
+
+def _fit(rss: float) -> ModelFit:
+    return ModelFit((), ("inertia",), (1.0,), (0.1,), rss, 10, np.zeros(10))
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_a_first_fit_with_a_non_finite_residual_is_not_kept(bad: float) -> None:
+    """A first start whose fit ends at a NaN residual was kept against every later finite one
+    (``f.rss < nan`` is false): the fit of lowest *finite* residual wins, in any order."""
+    assert lowest([_fit(bad), _fit(3.0), _fit(2.0)]).rss == 2.0
+    assert lowest([_fit(3.0), _fit(bad), _fit(2.0)]).rss == 2.0
+    assert lowest([_fit(2.0), _fit(3.0), _fit(bad)]).rss == 2.0
+    assert math.isnan(lowest([_fit(math.nan), _fit(math.nan)]).rss)  # none finite: the first
+
+
+def test_fit_best_skips_a_non_finite_first_fit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``fit_best`` itself (the fits faked by their start): NaN first, then finite ones."""
+    rss = iter([math.nan, 5.0, 4.0])
+    monkeypatch.setattr(multistart, "fit_model", lambda *a, **k: _fit(next(rss)))
+    got = multistart.fit_best(None, None, [{}, {}, {}], (), 1)  # type: ignore[arg-type]
+    assert got.rss == 4.0
