@@ -24,6 +24,7 @@ and the step's output right before ``backend.apply`` (a last line of defence, co
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -82,8 +83,10 @@ class HandService:
     role = "hand"
 
     def __init__(self, cfg: TeleopConfig, bus: Bus, backend: HandBackend,
-                 suite: ControllerSuite | None = None, watchdogs: bool = True) -> None:
+                 suite: ControllerSuite | None = None, watchdogs: bool = True,
+                 clock: Callable[[], float] | None = None) -> None:
         self.cfg = cfg
+        self.clock = clock  # the loop's clock: when the hand was read and written (None: t_s)
         self.bus = bus
         self.backend = backend
         self.suite = suite if suite is not None else get_suite(cfg.controller.kind)
@@ -174,7 +177,9 @@ class HandService:
             self.command_rx_t_s = t_s
         if self.t0_s is None:
             self.t0_s = t_s
+        r0 = self._now(t_s)
         reading = self.backend.read(t_s - self.t0_s)  # backend time: from the first tick
+        read_t_s = 0.5 * (r0 + self._now(t_s))
         self.last_reading = reading
         prev = self.wd
         # a stale reading (silent hand) trips the watchdog at once, like a vanished peer
@@ -203,12 +208,15 @@ class HandService:
             header=Header(seq=self.seq, t_s=t_s, energy_total_j=out.energy_total_j),
             finger_setpoint_rad=out.setpoint_rad, preshape_rad=out.preshape_rad,
             mode=HandMode.POSITION)
+        write_t_s = math.nan
         if all(math.isfinite(v) for v in (*out.setpoint_rad, out.preshape_rad)):
             limited = clamp_command(applied, self.finger_max_rad, self.preshape_max_rad)
             if limited is not applied:
                 self.clamp_count += 1
                 self.events.append("set-point outside the joint limits: clamped")
+            w0 = self._now(t_s)
             self.backend.apply(limited)
+            write_t_s = 0.5 * (w0 + self._now(t_s))
         else:
             self.events.append("non-finite set-point: not applied")
         self.seq += 1
@@ -264,7 +272,12 @@ class HandService:
             model_fallbacks=float(out.model_fallbacks),
             servo_fault_trips=float(reading.servo_fault_trips),
             servo_safe=float(reading.servo_safe), yielding=float(out.yielding),
-            unseen_contact=float(out.unseen), cells_low=float(out.cells_low))
+            unseen_contact=float(out.unseen), cells_low=float(out.cells_low),
+            read_t_s=read_t_s, write_t_s=write_t_s)
+
+    def _now(self, t_s: float) -> float:
+        """The loop clock's time (``t_s`` without a clock: virtual time, the tick is instant)."""
+        return t_s if self.clock is None else self.clock()
 
     def close(self) -> None:
         """Go safe and release the hand."""

@@ -68,8 +68,10 @@ def build_backend(role: str, cfg: TeleopConfig) -> Any:
     return None
 
 
-def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any) -> Any:
-    """The service shell for ``role`` on ``bus`` around ``backend``."""
+def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any,
+                  clock: Any = None) -> Any:
+    """The service shell for ``role`` on ``bus`` around ``backend`` (the hand records when
+    it read and wrote the hand on ``clock``'s ``now_s``)."""
     if role == "master":
         from services.master_service import MasterService
 
@@ -80,7 +82,7 @@ def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any) -> Any:
         return ControllerService(cfg, bus)
     from services.hand_service import HandService
 
-    return HandService(cfg, bus, backend)
+    return HandService(cfg, bus, backend, clock=None if clock is None else clock.now_s)
 
 
 def _hand_meta(role: str, cfg: TeleopConfig) -> tuple[tuple[str, str], ...]:
@@ -206,7 +208,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
                               cfg.dashboard.rate_hz, meta)
         bus = ZenohBus.from_config(role, cfg, clock=clock, announce=False)
         telemetry.rejects_source = lambda: bus.stats().rejects
-        svc = build_service(role, cfg, bus, backend)
+        svc = build_service(role, cfg, bus, backend, clock)
         print(f"ready {role}", flush=True)
         # real-time priority already for the wait: on a busy machine a normal-priority
         # process can take half a second to notice its peers

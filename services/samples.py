@@ -103,6 +103,11 @@ class HandSample:
     yielding: float = 0.0  # fingers whose contact yields (tactile force not trusted there)
     unseen_contact: float = 0.0  # fingers stalled on a contact their cells do not see
     cells_low: float = 0.0  # fingers whose cells read less than the servo's load implies
+    # when the hand was really read and the set-points really written (midpoint of the
+    # backend's read / apply call, on the loop's clock): ``t_s`` is the tick's deadline.
+    # ``t_s`` itself without a clock (lockstep, virtual time); NaN: nothing written this tick
+    read_t_s: float = NAN
+    write_t_s: float = NAN
 
 
 Sample = MasterSample | ControllerSample | HandSample

@@ -56,6 +56,7 @@ class Telemetry:
         self.period_s = 1.0 / dashboard_rate_hz
         self._next_log_s = -math.inf
         self._writer: RecordingWriter | None = None
+        self._clock_cols: list[int] = []
         self._delays: dict[str, float] = {}
         self._dropped: dict[str, float] = {}
         #: where the dashboard gets the bus's rejection counts (set by the runner)
@@ -79,10 +80,14 @@ class Telemetry:
         t = self._t(sample.t_s)
         if self.record_path is not None:
             if self._writer is None:
-                self._writer = RecordingWriter(self.record_path, sample_columns(sample),
-                                               meta=self.meta)
+                cols = sample_columns(sample)
+                # clock times besides t_s (the hand's read_t_s, write_t_s): on t_s's epoch too
+                self._clock_cols = [i for i, c in enumerate(cols) if c.endswith("_t_s") and i]
+                self._writer = RecordingWriter(self.record_path, cols, meta=self.meta)
             row = sample_row(sample)
             row[0] = t
+            for i in self._clock_cols:
+                row[i] -= self.epoch_s  # type: ignore[operator]
             self._writer.write(row)
         if self.rec is None:
             return

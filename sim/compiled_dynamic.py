@@ -59,15 +59,37 @@ def _run(x: np.ndarray, cmd: np.ndarray, steps: int, dt: float, k: np.ndarray,
 
 
 @njit(cache=True)
+def _prime(x: np.ndarray, t: np.ndarray, rows: np.ndarray, i: int, delay: float,
+           line: np.ndarray, due: np.ndarray, queued: np.ndarray, ends: np.ndarray) -> None:
+    """A segment restarting at row ``i`` with the delay line's worth of recorded commands
+    (``finger_dynamic._primed``): the commands written less than ``delay`` before row ``i``
+    are pending, due ``delay`` after they were written; the settling command stays in force
+    until the first is due."""
+    j0 = i - 1
+    while j0 > 0 and t[j0] > t[i] - delay:
+        j0 -= 1
+    ends[0] = ends[1]
+    if t[j0] <= t[i] - delay:
+        j0 += 1
+    for j in range(j0, i):
+        due[ends[1]] = x[X_T] + (t[j] + delay - t[i])
+        queued[ends[1], :] = rows[j]
+        ends[1] += 1
+    line[5:10] = rows[i - 1]
+    line[10] = 1.0
+
+
+@njit(cache=True)
 def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndarray,
                   active: np.ndarray, restart: np.ndarray, has_restart: bool, dt_s: float,
                   settle_steps: int, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
                   e: np.ndarray, delay: float, out: np.ndarray) -> None:
     """Motor and proximal angle (``out[i]``) at every active row, each row's command held for
     ``nsub[i]`` steps over the span to the next row; after inactive rows a segment restarts
-    from rest settled ``settle_steps`` at the position goal ``restart[i]``."""
+    from rest settled ``settle_steps`` at the position goal ``restart[i]``, with the
+    commands of the last delay pending (:func:`_prime`)."""
     n_rows = rows.shape[0]
-    cap = int(nsub.sum()) + settle_steps * n_rows + 1
+    cap = int(nsub.sum()) + (settle_steps + 2) * n_rows + 1
     due = np.empty(cap)
     queued = np.empty((cap, 5))
     x = x0.copy()
@@ -87,6 +109,8 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
             ends[0] = ends[1]
             settle[1] = restart[i]
             _run(x, settle, settle_steps, dt_s, k, dsegs, o, e, delay, line, due, queued, ends)
+            if delay > 0.0 and i > 0:
+                _prime(x, t, rows, i, delay, line, due, queued, ends)
             was_active = True
         out[i, 0] = x[X_TH]
         out[i, 1] = x[X_PHI]

@@ -126,10 +126,30 @@ def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObjec
     return state
 
 
+def _primed(state: FingerState, data: DynamicData, i: int, delay_s: float) -> FingerState:
+    """``state`` restarting at row ``i`` with the delay line's worth of recorded commands:
+    the ones written less than ``delay_s`` before row ``i`` are pending, due ``delay_s``
+    after they were written (the delayed servo still has them to execute, also when they
+    were written during an excluded stretch); until the first is due the settling command
+    holds the finger where it was measured (what held it there, e.g. an object, is not in
+    the recording)."""
+    t = data.t_s
+    j0 = i - 1
+    while j0 > 0 and t[j0] > t[i] - delay_s:
+        j0 -= 1
+    active = state.command[0]
+    if t[j0] <= t[i] - delay_s:
+        j0 += 1
+    pending = tuple((state.t_s + float(t[j] + delay_s - t[i]), data.commands[j])
+                    for j in range(j0, i))
+    return replace(state, command=(active, data.commands[i - 1], pending))
+
+
 def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float,
                      engine_name: str = DEFAULT_ENGINE) -> Array:
     """Simulated output at every recorded sample, from rest at the first one (NaN on rows
-    that are not simulated; a segment after them restarts settled at the measured angle).
+    that are not simulated; a segment after them restarts settled at the measured angle,
+    with the commands recorded over the last delay still to come: :func:`_primed`).
     ``engine_name`` "compiled" runs it in one compiled call (``sim.compiled_dynamic``)."""
     if engine(engine_name).name == "compiled":
         from sim.compiled_dynamic import simulate_compiled
@@ -148,6 +168,9 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
             continue
         if not was_active and data.restart_goal_rad is not None:
             state = _settled(p, eff, float(data.restart_goal_rad[i]), obj, dt_s)
+            delay = p.command_delay_s + eff.dead_time
+            if delay > 0.0 and i > 0:
+                state = _primed(state, data, i, delay)
             was_active = True
         o = finger_outputs(state, p, obj, eff)
         out[i] = (o.motor_angle_rad if motor else o.proximal_rad) * (

@@ -17,7 +17,12 @@ Columns used for finger ``N`` (1-3):
   settled at the measured motor angle; the first ``SETTLE_ROWS_S`` after a restart are not
   compared (the finger may still be moving).
 
-The hand's own rate (40 Hz by default) and irregular timing are used as recorded.
+The hand's own rate (40 Hz by default) and irregular timing are used as recorded.  ``t_s`` is
+the hand loop's deadline; a recording with ``read_t_s`` and ``write_t_s`` (when the hand service
+really read the servos and wrote the set-points, since 2026-11-26) is simulated on those times
+(:func:`on_clock`): the output is compared at its read time and each row's command applies from
+its write time (a dynamixel overload back-off written during a read, from that read).  Without
+them (older recordings) every row is read and written at ``t_s``.
 """
 
 from __future__ import annotations
@@ -82,19 +87,72 @@ def _meta_float(rec: Recording, key: str) -> float:
                              f"'# {key}:' line (got {raw!r})") from None
 
 
+def overloaded(load_units: np.ndarray, overload_units: float, load_filter: float) -> np.ndarray:
+    """Rows after whose read the dynamixel driver's filtered load (``f = a new + (1 - a) f``)
+    is above the overload threshold."""
+    out = np.zeros(len(load_units), bool)
+    f = 0.0
+    for i, load in enumerate(load_units):
+        f = load_filter * float(load) + (1.0 - load_filter) * f
+        out[i] = abs(f) > overload_units
+    return out
+
+
+def backed_off(joint_rad: np.ndarray) -> np.ndarray:
+    """The driver's overload back-off target: the present angle - 0.05 rad, in the travel."""
+    return np.clip(np.asarray(joint_rad, float) - BACKOFF_RAD, 0.0, TRAVEL_RAD)
+
+
 def dynamixel_targets(setpoint_rad: np.ndarray, joint_rad: np.ndarray, load_units: np.ndarray,
                       overload_units: float, load_filter: float) -> np.ndarray:
     """The joint targets the dynamixel driver wrote, row by row, rebuilt from the recording:
-    the set-point (already clamped to the travel), except while the filtered load
-    (``f = a new + (1 - a) f``) is above the overload threshold, when the target is held at
-    the present angle - 0.05 rad (the driver's overload back-off)."""
+    the set-point (already clamped to the travel), except while overloaded
+    (:func:`overloaded`), when the target is held at :func:`backed_off`."""
+    over = overloaded(load_units, overload_units, load_filter)
     out = np.array(setpoint_rad, dtype=float)
-    f = 0.0
-    for i, (j, load) in enumerate(zip(joint_rad, load_units, strict=True)):
-        f = load_filter * float(load) + (1.0 - load_filter) * f
-        if abs(f) > overload_units:
-            out[i] = min(out[i], min(max(float(j) - BACKOFF_RAD, 0.0), TRAVEL_RAD))
+    out[over] = np.minimum(out[over], backed_off(joint_rad)[over])
     return out
+
+
+def on_clock(data: DynamicData, read_t_s: np.ndarray, write_t_s: np.ndarray,
+             read_cmds: tuple[MotorCommand, ...]) -> DynamicData:
+    """``data`` (one row per hand tick, command ``i`` from ``t_s[i]``) on the times the hand
+    was really read and written: two rows per tick, the read (compared; command
+    ``read_cmds[i]``, what holds from the read on) and the write (``data.commands[i]``).
+    A tick that wrote nothing (NaN write time) keeps the read row's command.  Times are made
+    strictly increasing (by 1 us at most where a write was stamped at its read)."""
+    n = len(data.t_s)
+    t = np.empty(2 * n)
+    t[0::2], t[1::2] = read_t_s, np.where(np.isfinite(write_t_s), write_t_s, read_t_s)
+    for i in range(1, 2 * n):
+        t[i] = max(t[i], t[i - 1] + 1e-6)
+    wrote = np.isfinite(write_t_s)
+    cmds = tuple(c for i in range(n) for c in (
+        read_cmds[i], data.commands[i] if wrote[i] else read_cmds[i]))
+
+    def twice(a: np.ndarray | None) -> np.ndarray | None:
+        return None if a is None else np.repeat(a, 2)
+
+    return DynamicData(t, cmds, np.repeat(data.y, 2), data.output, 2 * data.keep,
+                       data.physics_dt_s, data.out_scale, twice(data.active),
+                       twice(data.restart_goal_rad), data.note)
+
+
+def _clock_columns(rec: Recording) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(read_t_s, write_t_s)`` when the recording has them (read times finite, increasing)."""
+    if not (rec.has("read_t_s") and rec.has("write_t_s")):
+        return None
+    r, w = rec.column("read_t_s"), rec.column("write_t_s")
+    if not np.all(np.isfinite(r)) or np.any(np.diff(r) <= 0):
+        raise RecordingError(f"{rec.source}: column 'read_t_s' is not finite and increasing "
+                             f"at data row {_first_bad(r) + 1}")
+    return r, w
+
+
+def _first_bad(r: np.ndarray) -> int:
+    bad = ~np.isfinite(r)
+    bad[1:] |= np.diff(r) <= 0
+    return int(np.argmax(bad))
 
 
 def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad",
@@ -115,15 +173,28 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
     force = (_col(rec, f"force_units_f{finger}", finger) if np.any(mode == 1)
              else np.zeros(len(t)))
     goal, speed = np.clip(sp, 0.0, TRAVEL_RAD), 0.0
+    read_goal = np.concatenate([goal[:1], goal[:-1]])  # what holds from each read on
     driver = rec.meta_value("hand_backend")
     if driver == "dynamixel":  # its targets back off while overloaded; its moves are paced
         speed = JOINT_RATIO * _meta_float(rec, "speed_rad_s")
-        goal = dynamixel_targets(goal, motor, _col(rec, f"motor_load_units_f{finger}", finger),
-                                 _meta_float(rec, "overload_finger_units"),
-                                 _meta_float(rec, "load_filter"))
-    cmds = tuple(MotorCommand("force", force_units=float(f)) if m == 1 else
-                 MotorCommand("position", goal_rad=JOINT_RATIO * float(g), speed_rad_s=speed)
-                 for g, m, f in zip(goal, mode, force, strict=True))
+        over = overloaded(_col(rec, f"motor_load_units_f{finger}", finger),
+                          _meta_float(rec, "overload_finger_units"),
+                          _meta_float(rec, "load_filter"))
+        back = backed_off(motor)
+        goal = np.where(over, np.minimum(goal, back), goal)
+        read_goal = np.concatenate([goal[:1], goal[:-1]])
+        read_goal = np.where(over, np.minimum(read_goal, back), read_goal)
+    read_mode = np.concatenate([mode[:1], mode[:-1]])
+    read_force = np.concatenate([force[:1], force[:-1]])
+
+    def commands(goals: np.ndarray, modes: np.ndarray, forces: np.ndarray
+                 ) -> tuple[MotorCommand, ...]:
+        return tuple(MotorCommand("force", force_units=float(f)) if m == 1 else
+                     MotorCommand("position", goal_rad=JOINT_RATIO * float(g),
+                                  speed_rad_s=speed)
+                     for g, m, f in zip(goals, modes, forces, strict=True))
+
+    cmds = commands(goal, mode, force)
     contact = (rec.column(f"contacts_f{finger}") > 0 if rec.has(f"contacts_f{finger}")
                else np.zeros(len(t), bool))
     active = ~contact
@@ -155,9 +226,16 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
                      f"object is not in the recording; the simulation restarts {n_seg} time(s) "
                      f"settled at the measured motor angle, {SETTLE_ROWS_S:g} s after each not "
                      "compared")
+    clock = _clock_columns(rec)
+    if clock is None:
+        notes.append("no 'read_t_s'/'write_t_s' columns: read and written at 't_s' (the "
+                     "hand loop's deadline)")
     note = "; ".join(notes)
-    goal = JOINT_RATIO * motor  # joint-side motor angle -> shaft
-    return DynamicData(t, cmds, y, output, keep, 1e-3,
+    data = DynamicData(t, cmds, y, output, keep, 1e-3,
                        out_scale=1.0 / JOINT_RATIO if output == "motor_angle_rad" else 1.0,
                        active=None if active.all() else active,
-                       restart_goal_rad=goal, note=note)
+                       restart_goal_rad=JOINT_RATIO * motor,  # joint-side motor angle -> shaft
+                       note=note)
+    if clock is None:
+        return data
+    return on_clock(data, clock[0], clock[1], commands(read_goal, read_mode, read_force))

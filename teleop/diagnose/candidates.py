@@ -68,8 +68,8 @@ def applicable(nominal: AxisNominal, has_input: bool) -> tuple[str, ...]:
                 nominal.value("coulomb") is None):
             continue  # a free Coulomb level already is the effect; a stated one is bounded
             # by its tolerance, and a level beyond it is the missing effect
-        if name == "gravity" and nominal.has("gravity"):
-            continue
+        if name == "gravity" and nominal.has("gravity") and nominal.value("gravity") is None:
+            continue  # as for Coulomb: a stated gravity level is held to its tolerance
         if name == "sensor_offset" and nominal.has("offset") and not (
                 nominal.has("gravity")):
             continue  # a constant effort bias with linear springs is the same thing

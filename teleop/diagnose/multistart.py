@@ -37,19 +37,26 @@ def restarts(start: dict[str, float], nominal: AxisNominal | None = None
 
 def fit_best(data: FitData, nominal: AxisNominal, starts: Sequence[dict[str, float]],
              effects: tuple[str, ...], max_nfev: int, mask: Array | None = None) -> ModelFit:
-    """The fit of lowest residual from ``starts`` (a start whose fit fails numerically is
-    skipped; if all fail, the first's failure is raised)."""
-    best: ModelFit | None = None
+    """The fit of lowest residual from ``starts`` (:func:`lowest`; a start whose fit fails
+    numerically is skipped; if all fail, the first's failure is raised)."""
+    fits: list[ModelFit] = []
     first: Exception | None = None
     for st in starts:
         try:
-            f = fit_model(data, nominal, st, effects, max_nfev, mask=mask)
+            fits.append(fit_model(data, nominal, st, effects, max_nfev, mask=mask))
         except NUMERIC_FAILURES as e:
             first = first or e
-            continue
-        if best is None or (math.isfinite(f.rss) and f.rss < best.rss):
-            best = f
-    if best is None:
+    if not fits:
         assert first is not None
         raise first
+    return lowest(fits)
+
+
+def lowest(fits: Sequence[ModelFit]) -> ModelFit:
+    """The fit of lowest finite residual; the first if none is finite (a non-finite residual,
+    NaN included, never beats a finite one: NaN compares false both ways)."""
+    best = fits[0]
+    for f in fits[1:]:
+        if math.isfinite(f.rss) and not (math.isfinite(best.rss) and best.rss <= f.rss):
+            best = f
     return best

@@ -197,3 +197,45 @@ def test_the_servo_fault_count_reaches_the_controller_in_the_hand_state() -> Non
     assert seen[0] == (0.0, 0.0) and seen[-1] == (2.0, 2.0)
     assert (h_svc.bus.alive("controller"), hs.servo_safe) == (True, 1.0)
     assert sum("servo error bits" in e and "episode 2" in e for e in events) == 1
+
+
+def test_the_hand_records_when_it_really_read_and_wrote(tmp_path) -> None:  # noqa: ANN001
+    """``t_s`` is the tick's deadline; ``read_t_s`` / ``write_t_s`` are the midpoints of the
+    backend's read and apply calls on the loop clock, on the recording's time base.  A backend
+    whose read takes 4 ms and apply 2 ms, ticked 30 ms late: read at deadline + 32 ms, write
+    after the read.  Mutants watched failing: the midpoints taken from ``t_s``; the recorder
+    leaving the two columns on the clock's epoch."""
+    from services.telemetry import Telemetry
+    from teleop.recording import read_recording
+
+    cfg = load_config(None, [])
+    clock = VirtualClock()
+    hub = InProcessHub.from_config(cfg, clock)
+
+    class SlowHand(FakeHand):
+        def read(self, t_s: float):  # noqa: ANN202
+            clock.set(clock.now_s() + 0.004)
+            return super().read(t_s)
+
+        def apply(self, command: HandCommand) -> None:
+            clock.set(clock.now_s() + 0.002)
+            super().apply(command)
+
+    svc = HandService(cfg, hub.bus("hand"), SlowHand(), clock=clock.now_s)
+    tel = Telemetry("hand", None, tmp_path / "hand.csv", 100.0, 1.0)
+    for k in range(5):
+        deadline = 100.0 + k * svc.dt_s
+        clock.set(deadline + 0.030)  # the loop runs late
+        s = svc.tick(deadline)
+        assert abs(s.read_t_s - (deadline + 0.032)) < 1e-9
+        assert abs(s.write_t_s - (deadline + 0.035)) < 1e-9
+        tel.emit(s, [])
+    tel.close()
+    rec = read_recording(tmp_path / "hand.csv")
+    assert np.allclose(rec.column("read_t_s") - rec.t_s, 0.032, atol=1e-7)
+    assert np.allclose(rec.column("write_t_s") - rec.column("read_t_s"), 0.003, atol=1e-7)
+    assert abs(rec.t_s[0]) < 1e-12  # on the session epoch
+    hub2 = InProcessHub.from_config(cfg, VirtualClock())
+    plain = HandService(cfg, hub2.bus("hand"), FakeHand())  # no clock (lockstep): t_s
+    s = plain.tick(0.5)
+    assert s.read_t_s == s.write_t_s == 0.5

@@ -36,8 +36,14 @@ def setpoints(rng: np.random.Generator, t: np.ndarray, max_rad: float = 2.5) -> 
 
 
 def hand_recording(path: Path, seconds: float, seed: int, effects: EffectSet = EffectSet(),
-                   obj: str = "none", max_rad: float = 2.5) -> Path:
-    """Write a hand recording (finger 1 driven; fingers 2 and 3 follow at lower set-points)."""
+                   obj: str = "none", max_rad: float = 2.5, late_s: float = 0.0,
+                   clock_columns: bool = False) -> Path:
+    """Write a hand recording (finger 1 driven; fingers 2 and 3 follow at lower set-points).
+
+    ``late_s``: each tick reads the hand up to that late after its deadline ``t_s`` (uniform;
+    one tick in ten up to 4x that, as a loaded host's loop catching up) and writes the
+    set-points 2-15 ms after the read; ``clock_columns`` records those times as the hand
+    service does (``read_t_s``, ``write_t_s``)."""
     rng = np.random.default_rng(seed)
     cfg = load_config(None, [f"hand.sim.object.kind={obj}", "hand.sim.noise=true"])
     hand = SimHand(cfg.hand, seed=seed, effects=effects)
@@ -50,12 +56,26 @@ def hand_recording(path: Path, seconds: float, seed: int, effects: EffectSet = E
     sp = setpoints(rng, t, max_rad)
     cols: dict[str, list[float]] = {k: [] for k in (
         "t_s", *(f"{n}_f{i}" for n in ("proximal_angle_rad", "motor_angle_rad", "contacts",
-                                       "setpoint_rad") for i in (1, 2, 3)))}
-    for ti, s in zip(t, sp, strict=True):
-        r = hand.read(float(ti))
+                                       "setpoint_rad") for i in (1, 2, 3)),
+        *(("read_t_s", "write_t_s") if clock_columns else ()))}
+    n = len(t)
+    late = late_s * rng.uniform(0.0, 1.0, n) * np.where(rng.random(n) < 0.1, 4.0, 1.0)
+    took = rng.uniform(0.002, 0.015, n) if late_s > 0 else np.zeros(n)
+    read_t, write_t = np.empty(n), np.empty(n)
+    done = -np.inf
+    for i in range(n):  # one tick after the other: a late tick delays the next one's read
+        read_t[i] = max(t[i] + late[i], done + 1e-4)
+        write_t[i] = done = read_t[i] + took[i]
+    for ti, s, rt, wt in zip(t, sp, read_t, write_t, strict=True):
+        r = hand.read(float(rt))
         sps = (float(s), 0.6 * float(s), 0.3 * float(s))
+        if wt > rt:
+            hand.read(float(wt))  # the physics runs on until the set-points are written
         hand.apply(HandCommand(Header(0, float(ti), 0.0), sps, 0.0))
         cols["t_s"].append(float(ti) + 3.0)
+        if clock_columns:
+            cols["read_t_s"].append(float(rt) + 3.0)
+            cols["write_t_s"].append(float(wt) + 3.0)
         for i, f in enumerate(r.fingers, 1):
             cols[f"proximal_angle_rad_f{i}"].append(f.proximal_rad)
             cols[f"motor_angle_rad_f{i}"].append(f.motor_angle_rad)

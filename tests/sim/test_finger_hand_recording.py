@@ -30,7 +30,9 @@ def _diagnose(path: Path, tmp_path: Path, *extra: str) -> dict:  # type: ignore[
 
 @pytest.mark.slow
 def test_a_command_delay_in_the_hand_is_found_from_the_recorded_set_points(tmp_path: Path) -> None:
-    path = hand_recording(tmp_path / "hand.csv", 10.0, seed=5, effects=EffectSet(dead_time=0.06))
+    # a loop reading up to 30 ms late, with its read and write times recorded
+    path = hand_recording(tmp_path / "hand.csv", 10.0, seed=5, effects=EffectSet(dead_time=0.06),
+                          late_s=0.03, clock_columns=True)
     doc = _diagnose(path, tmp_path)
     assert doc["effects"], doc
     first = doc["effects"][0]
@@ -42,7 +44,8 @@ def test_a_command_delay_in_the_hand_is_found_from_the_recorded_set_points(tmp_p
 
 @pytest.mark.slow
 def test_a_clean_hand_recording_reports_no_effect(tmp_path: Path) -> None:
-    doc = _diagnose(hand_recording(tmp_path / "hand.csv", 10.0, seed=6), tmp_path)
+    doc = _diagnose(hand_recording(tmp_path / "hand.csv", 10.0, seed=6, late_s=0.03,
+                                   clock_columns=True), tmp_path)
     assert doc["effects"] == [], doc["effects"]
     assert doc["unexplained"] is None
 

@@ -112,15 +112,6 @@ def test_the_judgement_refuses_an_unrelated_effect_or_a_lag_without_the_note() -
 
 @pytest.mark.network
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=(
-    "not reliable (issue 14 item 1, open): 3 runs on 2026-11-25 at load 0.5-6 on this branch: "
-    "1 passed (dead_time 0.128 s first, clean run names nothing); 1 named actuator_lag 0.138 s "
-    "with the cannot-tell note but NRMSE only x 0.84 (the bound was x 0.7, now x 0.85); 1 named "
-    "actuator_lag 0.095 s with the note while its clean run named actuator_lag 0.113 s with the "
-    "same note: on that run the dynamixel path itself reads as a lag as large as the delay's. "
-    "2026-11-26: 2 more pairs at load 4-7 passed (actuator_lag 0.138 s with the note, clean "
-    "nothing); open: the recorded t_s are the loop's deadlines, not when the servos were read "
-    "and written (docs/diagnose-results.md)"))
 def test_a_dead_time_in_the_emulated_servos_is_named_from_the_up_recording(
         tmp_path: Path) -> None:
     csv = _record(tmp_path, "delay", ("--effect", f"dead_time={DEAD_TIME_S}"))
