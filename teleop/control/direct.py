@@ -17,15 +17,19 @@ from teleop.control.energy_tank import port_work_j, split_work
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
 from teleop.control.passivity_layer import spring_energy_j
 from teleop.control.transparency_layer import clip
-from teleop.control.two_layer import (
+from teleop.control.two_layer_controller import (
     ControllerStoreState,
-    HandPortState,
-    MasterPortState,
-    desired_setpoints,
     make_commands,
-    measure_master,
-    sample_hand_port,
     transparency_commands,
+)
+from teleop.control.two_layer_hand import (
+    HandPortState,
+    desired_setpoints,
+    sample_hand_port,
+)
+from teleop.control.two_layer_master import (
+    MasterPortState,
+    measure_master,
 )
 from teleop.messages import FingerState, ForceCommand, HandCommand, HandState, MasterState
 

@@ -37,16 +37,20 @@ from teleop.control.passivity_layer import (
     spring_energy_j,
 )
 from teleop.control.transparency_layer import clip
-from teleop.control.two_layer import (
+from teleop.control.two_layer_controller import (
     ControllerStoreState,
-    HandPortState,
-    MasterPortState,
-    desired_setpoints,
     make_commands,
-    measure_master,
+    transparency_commands,
+)
+from teleop.control.two_layer_hand import (
+    HandPortState,
+    desired_setpoints,
     sample_hand_port,
     slew,
-    transparency_commands,
+)
+from teleop.control.two_layer_master import (
+    MasterPortState,
+    measure_master,
 )
 from teleop.messages import FingerState, ForceCommand, HandCommand, HandState, MasterState
 

@@ -19,6 +19,7 @@ from services.lockstep import LockstepResult, run_lockstep
 from teleop.analysis.faults import FLOOD_KINDS, held_still, recovery_time_s
 from teleop.cli import main
 from teleop.config import TeleopConfig, load_config
+from tests.teleop.control.two_layer_parts import patch_sides
 
 
 @pytest.fixture(scope="module")
@@ -248,14 +249,13 @@ def test_a_physical_violation_fails_the_scenario(
     """A hand that skips its set-point modulation (the servo-spring layer, ``hand_port =
     servo``, 0.1 J tanks): the physical audit shows the ports received more than the tanks
     held + what was taken, and the scenario fails on it."""
-    from teleop.control import two_layer
     from teleop.control.passivity_layer import spring_energy_j
 
     def project(desired, previous, x, budget, k, tau=float("inf")):  # type: ignore[no-untyped-def]
         return desired, spring_energy_j(desired, x, k, tau) - spring_energy_j(previous, x,
                                                                              k, tau), False
 
-    monkeypatch.setattr(two_layer, "pspm_project", project)
+    patch_sides(monkeypatch, "pspm_project", project)
     small = load_config(None, [*BASE_OVERRIDES, "controller.tank.initial_j=0.1",
                                "controller.tank.reserve_j=0.0",
                                "controller.ports.hand_port=servo"])

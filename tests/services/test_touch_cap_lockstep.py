@@ -16,9 +16,9 @@ import pytest
 from services.lockstep import run_lockstep
 from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.config import load_config
-from teleop.control import two_layer
+from teleop.control import two_layer_hand
 
-ORIGINAL_HAND_CAP = two_layer.hand_touch_cap
+ORIGINAL_HAND_CAP = two_layer_hand.hand_touch_cap
 SLOW_LINKS = ("links.master_controller.delay_s=1.0", "links.controller_hand.delay_s=1.0")
 
 
@@ -37,14 +37,14 @@ def peaks(seconds: float = 15.0, links: tuple[str, ...] = SLOW_LINKS,
     """Peak pressure of each grasp of a lockstep run; ``hand_cap=False`` runs it with the
     hand's touch cap replaced by :func:`no_hand_cap` (restored after, so the module's shared
     capped run never sees the mutant)."""
-    original = two_layer.hand_touch_cap
+    original = two_layer_hand.hand_touch_cap
     if not hand_cap:
-        two_layer.hand_touch_cap = no_hand_cap
+        two_layer_hand.hand_touch_cap = no_hand_cap
     try:
         cfg = load_config(None, list(links))
         r = run_lockstep(cfg, seconds, seed=1)
     finally:
-        two_layer.hand_touch_cap = original
+        two_layer_hand.hand_touch_cap = original
     g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
                             r.displayed_force_n, cfg)
     return [s.peak_pressure for s in g.grasps]
@@ -54,7 +54,7 @@ def peaks(seconds: float = 15.0, links: tuple[str, ...] = SLOW_LINKS,
 def slow_peaks() -> list[float]:
     """The capped run with 1 s links, made once for the two tests that read it (each made
     it itself before)."""
-    assert two_layer.hand_touch_cap is ORIGINAL_HAND_CAP
+    assert two_layer_hand.hand_touch_cap is ORIGINAL_HAND_CAP
     return peaks()
 
 
@@ -90,16 +90,16 @@ def test_without_the_hand_cap_the_first_grasp_is_squeezed_blind() -> None:
 def test_the_no_cap_run_leaves_the_hand_cap_in_place(monkeypatch: pytest.MonkeyPatch) -> None:
     """The mutant is in place during a ``hand_cap=False`` run and undone after it, even when
     the run fails."""
-    original = two_layer.hand_touch_cap
+    original = two_layer_hand.hand_touch_cap
 
     def failing_run(*args: object, **kwargs: object) -> None:
-        assert two_layer.hand_touch_cap is no_hand_cap
+        assert two_layer_hand.hand_touch_cap is no_hand_cap
         raise RuntimeError("run failed")
 
     monkeypatch.setattr(sys.modules[__name__], "run_lockstep", failing_run)
     with pytest.raises(RuntimeError, match="run failed"):
         peaks(hand_cap=False)
-    assert two_layer.hand_touch_cap is original
+    assert two_layer_hand.hand_touch_cap is original
 
 
 def soft_ratio(*extra: str) -> tuple[float, list[float]]:
@@ -121,8 +121,8 @@ def test_the_soft_operator_s_first_grasp_under_delay_is_no_harder_than_the_felt_
     assert ratio >= 0.9, p
     ratio, p = soft_ratio("controller.contact_model.touch_feel_s=0")
     assert ratio < 0.8, p
-    slew = two_layer.slew
-    monkeypatch.setattr(two_layer, "slew", lambda want, prev, step, x=None: slew(want, prev,
+    slew = two_layer_hand.slew
+    monkeypatch.setattr(two_layer_hand, "slew", lambda want, prev, step, x=None: slew(want, prev,
                                                                                   step))
     ratio, p = soft_ratio()
     assert ratio < 0.8, p

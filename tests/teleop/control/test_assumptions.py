@@ -28,6 +28,7 @@ from _ctl_harness import Scenario, Trace, audit_failure, initial_tank_j, run_loo
 from teleop.config.control import ControllerConfig
 from teleop.control.interface import ControlParams, control_params
 from teleop.control.registry import CONTROLLERS
+from tests.teleop.control.two_layer_parts import patch_sides
 
 #: the operator closes and holds; the object yields at 0.05 rad/s while pressed
 PUSH = Scenario(seed=2, steps=6000, wall_rad=(0.3, 0.3, 0.3), hand_every=25, ref_period_s=8.0,
@@ -108,8 +109,7 @@ def test_without_the_guard_a_sensor_reading_low_breaks_the_bound(gain: float) ->
 
 def test_the_guard_without_its_charge_breaks_the_bound(monkeypatch: pytest.MonkeyPatch) -> None:
     """Flagging alone is not enough: the yielding finger's advance must be paid for."""
-    from teleop.control import two_layer
-    monkeypatch.setattr(two_layer, "yield_charge_j", lambda *a: 0.0)
+    patch_sides(monkeypatch, "yield_charge_j", lambda *a: 0.0)
     r = run_loop(SUITE, P, replace(PUSH, sensor_gain_factor=1.0 / 3.0))
     assert r.yielding_hand == 3
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""

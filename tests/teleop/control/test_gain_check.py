@@ -31,6 +31,7 @@ from teleop.control.gain_check import (
 from teleop.control.interface import control_params
 from teleop.control.object_port import PadTrack, TactileModel, kernel
 from teleop.messages import FingerState, HandCommand, HandMode, Header
+from tests.teleop.control.two_layer_parts import patch_sides
 
 MODEL = TactileModel()
 DT_S = 0.025  # the hand's 40 Hz
@@ -245,7 +246,7 @@ def test_the_hand_layer_pays_the_recharge_through_the_margin_beyond_the_sample_c
     one-sample cap of ~0.05 J) costs the tank ``m`` x 1 J on top of the sample's work."""
     plain = _charged_j((UNCHECKED,) * 3)
     checks = gain_check.check_gains
-    monkeypatch.setattr(two_layer, "check_gains",
+    patch_sides(monkeypatch, "check_gains",
                         lambda *a: (*checks(*a)[:2], 1.0))
     assert _charged_j((UNCHECKED,) * 3) == pytest.approx(plain + MODEL.force_margin * 1.0,
                                                          rel=1e-9)

@@ -28,7 +28,7 @@ from _ctl_harness import Scenario, audit_failure, initial_tank_j, run_loop, run_
 from services.lockstep import LockstepContext, run_lockstep
 from teleop.config import load_config
 from teleop.config.control import ControllerConfig
-from teleop.control import two_layer
+from teleop.control import two_layer, two_layer_hand
 from teleop.control.energy_channel import TotalReceiver
 from teleop.control.energy_tank import port_work_j
 from teleop.control.interface import ControlParams, control_params
@@ -36,6 +36,7 @@ from teleop.control.model_render import RenderState, model_force_n
 from teleop.control.passivity_layer import dissipation_lower_bound_j, spring_energy_j
 from teleop.control.registry import CONTROLLERS
 from teleop.transport import bus
+from tests.teleop.control.two_layer_parts import patch_sides
 
 Mutant = Callable[[pytest.MonkeyPatch], None]
 
@@ -49,23 +50,23 @@ def _replace_suite(mp: pytest.MonkeyPatch, **steps: Callable[..., Any]) -> None:
 
 def port_work_sign_flipped(mp: pytest.MonkeyPatch) -> None:
     """The master's tank credits the work it does on the operator instead of paying it."""
-    mp.setattr(two_layer, "port_work_j", lambda f, dq: -port_work_j(f, dq))
+    patch_sides(mp, "port_work_j", lambda f, dq: -port_work_j(f, dq))
 
 
 def dissipation_over_credited(mp: pytest.MonkeyPatch) -> None:
     """The hand's tank is credited 50x the servo damping's dissipation lower bound."""
-    mp.setattr(two_layer, "dissipation_lower_bound_j",
+    patch_sides(mp, "dissipation_lower_bound_j",
                lambda x, xp, b, dt: 50.0 * dissipation_lower_bound_j(x, xp, b, dt))
 
 
 def franken_limiter_removed(mp: pytest.MonkeyPatch) -> None:
     """The master's desired force is not limited against ``H - H_min``."""
-    mp.setattr(two_layer, "franken_limit", lambda f, v, budget, dt: f)
+    patch_sides(mp, "franken_limit", lambda f, v, budget, dt: f)
 
 
 def guard_removed(mp: pytest.MonkeyPatch) -> None:
     """The master's hard guard ``|F| <= H / (max(v_max, |v|) T)`` is gone."""
-    mp.setattr(two_layer, "guard_force", lambda f, tank, v, vmax, dt: f)
+    patch_sides(mp, "guard_force", lambda f, tank, v, vmax, dt: f)
 
 
 def setpoint_modulation_skipped(mp: pytest.MonkeyPatch) -> None:
@@ -74,7 +75,7 @@ def setpoint_modulation_skipped(mp: pytest.MonkeyPatch) -> None:
                 tau: float = math.inf) -> tuple[Any, float, bool]:
         dp = spring_energy_j(desired, x, k, tau) - spring_energy_j(previous, x, k, tau)
         return desired, dp, False
-    mp.setattr(two_layer, "pspm_project", project)
+    patch_sides(mp, "pspm_project", project)
 
 
 def quanta_as_increments(mp: pytest.MonkeyPatch) -> None:
@@ -104,7 +105,7 @@ def quanta_as_increments(mp: pytest.MonkeyPatch) -> None:
         ns, out = suite.step_hand(s, *a)
         return ns, replace(out, energy_total_j=ns.ledger.sent_j - s.ledger.sent_j)
 
-    mp.setattr(two_layer, "receive_total", credit)
+    patch_sides(mp, "receive_total", credit)
     _replace_suite(mp, step_master=step_master, step_controller=step_controller,
                    step_hand=step_hand)
 
@@ -155,7 +156,7 @@ def model_rendered_outside_tank(mp: pytest.MonkeyPatch) -> None:
 
 def refund_in_contact(mp: pytest.MonkeyPatch) -> None:
     """The free-motion refund is paid whatever the tactile cells say (contact ignored)."""
-    mp.setattr(two_layer, "finger_contacts", lambda fingers: (False, False, False))
+    patch_sides(mp, "finger_contacts", lambda fingers: (False, False, False))
 
 
 def two_sided_damping_credit(mp: pytest.MonkeyPatch) -> None:
@@ -163,34 +164,34 @@ def two_sided_damping_credit(mp: pytest.MonkeyPatch) -> None:
     the servo's push that drives it."""
     def credit(x: Any, xp: Any, b: float, dt: float) -> float:
         return b * sum((u - v) ** 2 for u, v in zip(x, xp, strict=True)) / dt if dt > 0 else 0.0
-    mp.setattr(two_layer, "dissipation_lower_bound_j", credit)
+    patch_sides(mp, "dissipation_lower_bound_j", credit)
 
 
 def object_work_sign_flipped(mp: pytest.MonkeyPatch) -> None:
     """Environment-port hand: work the pads do on the object is credited, work the object
     gives back charged (the two estimates swapped)."""
-    track = two_layer.track_fingers
+    track = two_layer_hand.track_fingers
 
     def swapped(model: Any, prev: Any, fingers: Any) -> Any:
         tracks, works = track(model, prev, fingers)
         return tracks, tuple((i, o) for o, i in works)
-    mp.setattr(two_layer, "track_fingers", swapped)
+    patch_sides(mp, "track_fingers", swapped)
 
 
 def object_work_not_charged(mp: pytest.MonkeyPatch) -> None:
     """Environment-port hand: the tank is never charged for the work on the object."""
-    track = two_layer.track_fingers
+    track = two_layer_hand.track_fingers
 
     def free(model: Any, prev: Any, fingers: Any) -> Any:
         tracks, works = track(model, prev, fingers)
         return tracks, tuple((0.0, i) for _, i in works)
-    mp.setattr(two_layer, "track_fingers", free)
+    patch_sides(mp, "track_fingers", free)
 
 
 def reservation_ignored(mp: pytest.MonkeyPatch) -> None:
     """Environment-port hand: the set-point goes where it is asked, whatever the servo
     potential and tendon stretch it builds up (the tank still pays the object work)."""
-    mp.setattr(two_layer, "reserve_project", lambda want, x, budget, k, tmax, kt: (want, False))
+    patch_sides(mp, "reserve_project", lambda want, x, budget, k, tmax, kt: (want, False))
 
 
 MUTANTS: dict[str, Mutant] = {
