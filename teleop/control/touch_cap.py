@@ -3,9 +3,9 @@ can have felt.
 
 Under delay the operator closes the trigger on nothing he can feel: the hand's contact model
 (:mod:`teleop.control.contact_model`) has to travel hand -> controller -> master before the
-trigger renders it.  Two caps hold a finger's new touch where the model renders the trigger's
-largest force, ``contact + force_max_n / k`` (``k`` in N of trigger force per rad of
-set-point), until the touch is known downstream:
+trigger renders it.  Two caps hold a finger's new touch where the model renders a light touch,
+``contact + touch_force_n / k`` (``k`` in N of trigger force per rad of set-point), until the
+touch is known downstream:
 
 - :func:`unseen_touch_cap` (controller) until the master echoes a command that carried the
   touch's model: the master link's round trip;
