@@ -66,13 +66,20 @@ def _link_delay_s(cfg: TeleopConfig, link: str, forward: bool) -> float:
     return d + 3.0 * lc.jitter_s
 
 
+def _default_timeout_s(cfg: TeleopConfig, period_s: float, link: str, forward: bool) -> float:
+    """An unset timeout: ``period_s`` (the sender's silence that is still normal), at least
+    ``safety.min_timeout_s``, plus the link's delay and three jitters."""
+    return max(period_s, cfg.safety.min_timeout_s) + _link_delay_s(cfg, link, forward)
+
+
 def hand_command_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogParams:
     """Hand side: no valid hand command -> hold at once; resume over ``force_ramp_s``."""
     s = cfg.safety
     timeout = s.command_timeout_s
     if timeout is None:
-        timeout = (max(4.0 / cfg.controller.rate_hz + 1.0 / cfg.hand.state_rate_hz,
-                       s.min_timeout_s) + _link_delay_s(cfg, "controller_hand", True))
+        timeout = _default_timeout_s(
+            cfg, 4.0 / cfg.controller.rate_hz + 1.0 / cfg.hand.state_rate_hz,
+            "controller_hand", True)
     return WatchdogParams(timeout, down_ramp_s=0.0, up_ramp_s=s.force_ramp_s, enabled=enabled)
 
 
@@ -81,8 +88,8 @@ def master_force_watchdog(cfg: TeleopConfig, enabled: bool = True) -> WatchdogPa
     s = cfg.safety
     timeout = s.state_timeout_s
     if timeout is None:
-        timeout = (max(4.0 / cfg.controller.rate_hz, s.min_timeout_s)
-                   + _link_delay_s(cfg, "master_controller", False))
+        timeout = _default_timeout_s(cfg, 4.0 / cfg.controller.rate_hz,
+                                     "master_controller", False)
     return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
                           enabled=enabled)
 
@@ -92,7 +99,7 @@ def controller_state_watchdog(cfg: TeleopConfig, enabled: bool = True) -> Watchd
     s = cfg.safety
     timeout = s.state_timeout_s
     if timeout is None:
-        timeout = (max(4.0 / cfg.hand.state_rate_hz, s.min_timeout_s)
-                   + _link_delay_s(cfg, "controller_hand", False))
+        timeout = _default_timeout_s(cfg, 4.0 / cfg.hand.state_rate_hz, "controller_hand",
+                                     False)
     return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
                           enabled=enabled)

@@ -39,10 +39,10 @@ def touch_force_n(p: ControlParams) -> float:
     return f
 
 
-def touch_depth_rad(p: ControlParams, k_n_per_rad: float, force_n: float | None = None) -> float:
-    """How far beyond contact ``force_n`` (default: :func:`touch_force_n`) is rendered, for a
-    model of ``k_n_per_rad`` N of trigger force per rad of set-point."""
-    return (touch_force_n(p) if force_n is None else force_n) / k_n_per_rad
+def touch_depth_rad(p: ControlParams, k_n_per_rad: float) -> float:
+    """How far beyond contact :func:`touch_force_n` is rendered, for a model of
+    ``k_n_per_rad`` N of trigger force per rad of set-point."""
+    return touch_force_n(p) / k_n_per_rad
 
 
 def feel_time_s(p: ControlParams) -> float:
