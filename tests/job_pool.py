@@ -43,6 +43,14 @@ def lockstep(cfg: TeleopConfig, seconds: float, seed: int) -> LockstepResult:
     return run_lockstep(cfg, seconds, seed=seed)
 
 
+def _default_workers() -> int:
+    """Two processes on a multi-core machine; one (the test's own process) under
+    pytest-xdist, whose other worker already keeps the second core busy."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return 1
+    return min(2, os.cpu_count() or 1)
+
+
 class JobPool:
     """Jobs ``key -> (fn, args)`` run on ``workers`` spawned processes, started in the
     mapping's order; :meth:`result` waits for one.  With one core (or
@@ -51,7 +59,7 @@ class JobPool:
     def __init__(self, jobs: Mapping[Hashable, Job], workers: int | None = None) -> None:
         self._jobs = dict(jobs)
         self._done: dict[Hashable, Any] = {}
-        n = min(2, os.cpu_count() or 1) if workers is None else workers
+        n = _default_workers() if workers is None else workers
         self._ex: ProcessPoolExecutor | None = None
         self._futures: dict[Hashable, Future[Any]] = {}
         if n > 1:
