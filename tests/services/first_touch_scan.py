@@ -6,11 +6,13 @@ behind docs/controllers.md's touch-cap table).
 
 Every operator (soft, relaxed, hard) on the soft cylinder, the stiff cylinder and the block,
 with the given one-way delay on both links; prints each run's grasp peaks, the weakest over
-the first, and the smallest margin of the physical energy audit.
+the first by peak pressure, closure and felt force, and the smallest margin of the physical
+energy audit.  ``SCAN_STYLES=soft`` (comma-separated) scans only those operators.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 
 import numpy as np
@@ -23,7 +25,8 @@ from teleop.config import load_config
 
 def main(argv: list[str]) -> None:
     secs, delay, extra = float(argv[0]), argv[1], argv[2:]
-    for style in ("soft", "relaxed", "hard"):
+    styles = os.environ.get("SCAN_STYLES", "soft,relaxed,hard").split(",")
+    for style in styles:
         for obj in ("soft-cylinder", "stiff-cylinder", "block"):
             cfg = with_object(load_config(None, [
                 f"master.virtual.style={style}", f"links.master_controller.delay_s={delay}",
@@ -32,9 +35,12 @@ def main(argv: list[str]) -> None:
             g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
                                     r.displayed_force_n, cfg)
             peaks = [int(s.peak_pressure) for s in g.grasps]
+            closures = [round(s.closure_rad, 3) for s in g.grasps]
+            felt = min(s.felt_ratio for s in g.grasps)
             print(f"{style:8} {obj:15} {delay} s  peaks {peaks}  weakest/first "
-                  f"{g.min_pressure_ratio:.2f}  audit margin {np.nanmin(r.audit_margin_j):.4f} J",
-                  flush=True)
+                  f"{g.min_pressure_ratio:.2f}  closures {closures} weakest/first "
+                  f"{g.min_closure_ratio:.2f}  felt {felt:.2f}  audit margin "
+                  f"{np.nanmin(r.audit_margin_j):.4f} J", flush=True)
 
 
 if __name__ == "__main__":

@@ -285,7 +285,7 @@ def run_loop(suite: ControllerSuite, p: ControlParams, sc: Scenario,
         if k % sc.hand_every == 0:
             fingers = tuple(finger_state(xf[i], max(0.0, xf[i] - walls[i]), sc,
                                          k_s * (y[i] - xf[i])) for i in range(3))
-            hs, hand_out = suite.step_hand(hs, p, fingers, last_hc, DT * sc.hand_every)
+            hs, hand_out = suite.step_hand(hs, p, fingers, last_hc, DT * sc.hand_every, t)
             y = hand_out.setpoint_rad
             h2c.send(k, HandState(header=Header(seq=k, t_s=t,
                                                 energy_total_j=hand_out.energy_total_j),
