@@ -155,6 +155,25 @@ def _force_of(terms: list[tuple[float, float]], how: str, f_max: float, theta: f
 def _force_at(r: RenderState, p: ControlParams, theta: float) -> float:
     """``F_model`` with every enabled finger at set-point ``theta``, clipped at the trigger's
     largest force."""
+    on = p.finger_enable
+    if on[0] and on[1] and on[2] and p.force_combine == "max":
+        # the default (:func:`_force_of` over three terms) written out: ``max(a, b)`` as the
+        # comparison it makes (``b if b > a else a``), so the same floats, signed zeros too
+        (k0, k1, k2), (c0, c1, c2) = r.stiffness_n_per_rad, r.contact_rad
+        d = theta - c0
+        x = k0 * (0.0 if d < 0.0 else d)
+        d = theta - c1
+        x1 = k1 * (0.0 if d < 0.0 else d)
+        d = theta - c2
+        x2 = k2 * (0.0 if d < 0.0 else d)
+        if x1 > x:
+            x = x1
+        if x2 > x:
+            x = x2
+        if x < 0.0:
+            x = 0.0
+        f_max = p.force_max_n
+        return f_max if f_max < x else x
     return _force_of(_terms(r, p), p.force_combine, p.force_max_n, theta)
 
 
