@@ -82,20 +82,24 @@ def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
     return _force_at(r, p, setpoint_rad(p, q_m))
 
 
-#: (params, the inputs' bytes, energy) of the last :func:`model_energy_j` (one tuple, replaced
-#: whole); a held grasp asks for the same energy at every tick
-_last_energy: tuple[ControlParams | None, bytes, float] = (None, b"", 0.0)
+#: the energies of the last few :func:`model_energy_j` calls: the inputs' bytes -> (params,
+#: energy).  A held grasp asks for the same energy at every tick, and a hand whose encoder
+#: reading flickers between two counts asks for two or three in turn.  Emptied when full
+#: (a plain dict, so a reader in another thread sees an entry whole or not at all)
+_energies: dict[bytes, tuple[ControlParams, float]] = {}
+_ENERGIES_MAX = 8
 
 
 def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     """The stored energy of the rendered model at ``q_m``: ``int_0^q F_model`` (see module)."""
-    global _last_energy
     key = struct.pack("<7d", q_m, *r.contact_rad, *r.stiffness_n_per_rad)  # bit for bit
-    last = _last_energy
-    if last[0] is p and last[1] == key:
-        return last[2]
+    hit = _energies.get(key)
+    if hit is not None and hit[0] is p:
+        return hit[1]
     e = _model_energy_j(r, p, q_m)
-    _last_energy = (p, key, e)
+    if len(_energies) >= _ENERGIES_MAX:
+        _energies.clear()
+    _energies[key] = (p, e)
     return e
 
 
