@@ -82,20 +82,24 @@ def model_force_n(r: RenderState, p: ControlParams, q_m: float) -> float:
     return _force_at(r, p, setpoint_rad(p, q_m))
 
 
-#: (params, the inputs' bytes, energy) of the last :func:`model_energy_j` (one tuple, replaced
-#: whole); a held grasp asks for the same energy at every tick
-_last_energy: tuple[ControlParams | None, bytes, float] = (None, b"", 0.0)
+#: the energies of the last few :func:`model_energy_j` calls: the inputs' bytes -> (params,
+#: energy).  A held grasp asks for the same energy at every tick, and a hand whose encoder
+#: reading flickers between two counts asks for two or three in turn.  Emptied when full
+#: (a plain dict, so a reader in another thread sees an entry whole or not at all)
+_energies: dict[bytes, tuple[ControlParams, float]] = {}
+_ENERGIES_MAX = 8
 
 
 def model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     """The stored energy of the rendered model at ``q_m``: ``int_0^q F_model`` (see module)."""
-    global _last_energy
     key = struct.pack("<7d", q_m, *r.contact_rad, *r.stiffness_n_per_rad)  # bit for bit
-    last = _last_energy
-    if last[0] is p and last[1] == key:
-        return last[2]
+    hit = _energies.get(key)
+    if hit is not None and hit[0] is p:
+        return hit[1]
     e = _model_energy_j(r, p, q_m)
-    _last_energy = (p, key, e)
+    if len(_energies) >= _ENERGIES_MAX:
+        _energies.clear()
+    _energies[key] = (p, e)
     return e
 
 
@@ -155,6 +159,25 @@ def _force_of(terms: list[tuple[float, float]], how: str, f_max: float, theta: f
 def _force_at(r: RenderState, p: ControlParams, theta: float) -> float:
     """``F_model`` with every enabled finger at set-point ``theta``, clipped at the trigger's
     largest force."""
+    on = p.finger_enable
+    if on[0] and on[1] and on[2] and p.force_combine == "max":
+        # the default (:func:`_force_of` over three terms) written out: ``max(a, b)`` as the
+        # comparison it makes (``b if b > a else a``), so the same floats, signed zeros too
+        (k0, k1, k2), (c0, c1, c2) = r.stiffness_n_per_rad, r.contact_rad
+        d = theta - c0
+        x = k0 * (0.0 if d < 0.0 else d)
+        d = theta - c1
+        x1 = k1 * (0.0 if d < 0.0 else d)
+        d = theta - c2
+        x2 = k2 * (0.0 if d < 0.0 else d)
+        if x1 > x:
+            x = x1
+        if x2 > x:
+            x = x2
+        if x < 0.0:
+            x = 0.0
+        f_max = p.force_max_n
+        return f_max if f_max < x else x
     return _force_of(_terms(r, p), p.force_combine, p.force_max_n, theta)
 
 

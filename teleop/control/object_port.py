@@ -39,6 +39,7 @@ removes.
 
 from __future__ import annotations
 
+import bisect
 import functools
 import math
 from collections.abc import Sequence
@@ -135,16 +136,54 @@ def contact_estimate(model: TactileModel, cells: tuple[float, ...], xs: tuple[fl
                                        else (xs[0], xs[-1])))
     rows: Sequence[tuple[float, tuple[float, ...], float]] = table
     if near_m is not None and near_m > 0.0:
-        reach = TRACK_STEP_M + 1e-12
-        rows = [r for r in table if abs(r[0] - near_m) <= reach] or table
-    best = (-1.0, 0.0, 0.0)
-    for x, ks, kk in rows:
-        pk = sum([a * b for a, b in zip(p, ks, strict=True)])
-        score = pk * pk / kk  # |p|^2 minus the residual of the best fit at x
-        if score > best[0]:
-            best = (score, x, pk / kk)
-    _, x, scale = best
-    return scale / model.pressure_per_n, x
+        rows = _near_rows(table, near_m) or table
+    return _best_fit(p, rows, model.pressure_per_n)
+
+
+def _near_rows(table: tuple[tuple[float, tuple[float, ...], float], ...], near_m: float
+               ) -> tuple[tuple[float, tuple[float, ...], float], ...]:
+    """The rows with ``abs(x - near_m) <= TRACK_STEP_M + 1e-12``, in table order.
+
+    The table's positions rise with the row (``lo + (hi - lo) * i / (n - 1)``: each float
+    operation is monotone), so ``x - near_m`` does too and the rows passing the test are one
+    run: found by bisection on the test's own two comparisons (``-reach <= d <= reach``, the
+    same as ``abs(d) <= reach``), not by testing every row."""
+    reach = TRACK_STEP_M + 1e-12
+    if not table[0][0] <= table[-1][0]:  # (falling: a pad given high end first) test each row
+        return tuple(r for r in table if abs(r[0] - near_m) <= reach)
+    lo = bisect.bisect_left(table, -reach, key=lambda r: r[0] - near_m)
+    hi = bisect.bisect_right(table, reach, lo, key=lambda r: r[0] - near_m)
+    return table[lo:hi]
+
+
+def _best_fit(p: list[float], rows: Sequence[tuple[float, tuple[float, ...], float]],
+              pressure_per_n: float) -> tuple[float, float]:
+    """``(force N, position m)`` of the row whose kernel pattern fits ``p`` best (the first of
+    equal scores).  The cell sums are written out for the pads' four and five cells:
+    ``0.0 + a0 b0 + a1 b1 + ...`` left to right is what ``sum`` of the products adds (from
+    the int 0), so the same floats."""
+    best_s, best_x, best_scale = -1.0, 0.0, 0.0
+    if len(p) == 5:
+        p0, p1, p2, p3, p4 = p
+        for x, (k0, k1, k2, k3, k4), kk in rows:
+            pk = 0.0 + p0 * k0 + p1 * k1 + p2 * k2 + p3 * k3 + p4 * k4
+            score = pk * pk / kk  # |p|^2 minus the residual of the best fit at x
+            if score > best_s:
+                best_s, best_x, best_scale = score, x, pk / kk
+    elif len(p) == 4:
+        p0, p1, p2, p3 = p
+        for x, (k0, k1, k2, k3), kk in rows:
+            pk = 0.0 + p0 * k0 + p1 * k1 + p2 * k2 + p3 * k3
+            score = pk * pk / kk
+            if score > best_s:
+                best_s, best_x, best_scale = score, x, pk / kk
+    else:
+        for x, ks, kk in rows:
+            pk = sum([a * b for a, b in zip(p, ks, strict=True)])
+            score = pk * pk / kk
+            if score > best_s:
+                best_s, best_x, best_scale = score, x, pk / kk
+    return best_scale / pressure_per_n, best_x
 
 
 def _split(model: TactileModel, pressure: tuple[float, ...]

@@ -63,6 +63,8 @@ def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
     drive the hand through the object meanwhile.  A model kept between grasps is not a new
     touch.  ``model``: the forwarded models (N per rad).  Returns (``since``, ``felt``,
     set-points)."""
+    if model[1] <= 0.0 and model[3] <= 0.0 and model[5] <= 0.0:  # no model: nothing capped
+        return NO_TOUCH, NO_TOUCH, (setpoints[0], setpoints[1], setpoints[2])
     echo = master.echo_t_s if master is not None else -1.0
     t_m = master.header.t_s if master is not None else math.nan
     feel = feel_time_s(p)

@@ -37,7 +37,9 @@ class TransparencyState:
 def grip_to_setpoints(grip_position_m: float, p: ControlParams) -> Triple:
     """Finger set-points (rad) for a trigger closing of ``grip_position_m``."""
     s = grip_position_m / p.trigger_travel_m if math.isfinite(grip_position_m) else 0.0
-    s = min(max(s, 0.0), 1.0) ** p.map_exponent
+    # min(max(s, 0.0), 1.0) as the comparisons max and min make (the same floats)
+    s = 0.0 if s < 0.0 else s
+    s = (1.0 if s > 1.0 else s) ** p.map_exponent
     closed = p.open_angle_rad + (p.closed_angle_rad - p.open_angle_rad) * s
     on = p.finger_enable
     if on[0] and on[1] and on[2]:
@@ -93,7 +95,9 @@ def clip(x: float, limit: float) -> float:
     """``x`` limited to ``[-limit, limit]`` (NaN -> 0)."""
     if not math.isfinite(x):
         return 0.0 if math.isnan(x) else math.copysign(limit, x)
-    return min(max(x, -limit), limit)
+    lo = -limit  # min(max(x, -limit), limit) as the comparisons they make (the same floats)
+    x = lo if lo > x else x
+    return limit if limit < x else x
 
 
 def lowpass(prev: float, u: float, cutoff_hz: float, dt_s: float) -> float:

@@ -62,7 +62,7 @@ from teleop.transport.delay_line import (
     delay_params,
     next_release_s,
 )
-from teleop.transport.fast_line import FastLine, fast_params
+from teleop.transport.fast_line import Due, FastLine, fast_params
 from teleop.transport.keys import SIGNALS, check_role, signal_spec
 from teleop.transport.safe_decoder import RejectCounts, SafeDecoder
 
@@ -223,7 +223,10 @@ class Inbox:
 
     def release(self, now_s: float) -> list[Received]:
         """Decode and return everything due at ``now_s``."""
-        due = self._pop_due(now_s)
+        if self._line is not None:
+            due = self._line.pop_due_raw(now_s)
+        else:
+            due = _raw(self._pop_due(now_s))
         return self._deliver(due) if due else []
 
     def arrive_and_release(self, arrivals: Iterable[tuple[bytes, float]],
@@ -241,14 +244,14 @@ class Inbox:
                 due += self._pop_due(now_s)
         due += self._pop_due(now_s)
         due.sort(key=lambda d: d.release_t_s)
-        return self._deliver(due)
+        return self._deliver(_raw(due))
 
-    def _deliver(self, due: list[Delivered]) -> list[Received]:
+    def _deliver(self, due: list[Due]) -> list[Received]:
+        """``due``: ``(payload, sent_t_s, delivered_t_s, delay_s)`` of each released message."""
         out: list[Received] = []
         exact = self.spec.msg_type
         decoder, signal, seq_jumps = self._decoder, self.signal, self._seq_jumps
-        for d in due:
-            p = d.payload
+        for p, sent_t_s, delivered_t_s, delay_s in due:
             if type(p) is exact:  # an in-process message the codec round-trips exactly
                 msg = p
                 decoder.accept()
@@ -262,7 +265,7 @@ class Inbox:
                     decoder.reject("stale_seq", f"{signal} seq {seq} <= {self._last_seq}")
                     continue
                 if (self.seq_jump_max is not None  # (without a cap the check passes)
-                        and not self._check_seq_jump(msg, d.delivered_t_s)):
+                        and not self._check_seq_jump(msg, delivered_t_s)):
                     continue
             msg = self._check_energy(msg)
             if msg is None:
@@ -270,7 +273,7 @@ class Inbox:
             self._last_seq = seq
             if seq_jumps:
                 seq_jumps.clear()
-            out.append(Received(signal, msg, d.sent_t_s, d.delivered_t_s, d.delay_s))
+            out.append(Received(signal, msg, sent_t_s, delivered_t_s, delay_s))
         self._delivered += len(out)
         return out
 
@@ -368,6 +371,11 @@ class Inbox:
         mean = s.delay_sum_s / s.n_delivered if s.n_delivered else float("nan")
         return LinkStats(self.signal, s.n_pushed, s.n_lost, s.n_duplicated, s.n_delivered,
                          self._delivered, mean, s.delay_max_s)
+
+
+def _raw(due: list[Delivered]) -> list[Due]:
+    """``due`` as the tuples :meth:`Inbox._deliver` reads."""
+    return [(d.payload, d.sent_t_s, d.delivered_t_s, d.delay_s) for d in due]
 
 
 def check_publish(role: str, signal: str, msg: Message) -> None:

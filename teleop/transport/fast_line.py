@@ -29,7 +29,7 @@ from teleop.transport.delay_line import (
     plain_release,
 )
 
-__all__ = ["FastLine", "fast_params"]
+__all__ = ["Due", "FastLine", "fast_params"]
 
 
 def fast_params(p: DelayParams) -> bool:
@@ -37,12 +37,20 @@ def fast_params(p: DelayParams) -> bool:
     return (p.jitter == "none" or p.jitter_s <= 0.0) and p.duplicate <= 0.0
 
 
-def _key(e: Pending) -> tuple[float, int]:
-    return (e.release_t_s, e.order)
+#: an entry in flight, as a plain tuple (no frozen object per message): the fields of
+#: :class:`~teleop.transport.delay_line.Pending` in their order
+Entry = tuple[float, int, float, object, bool]
+#: a released message: ``(payload, sent_t_s, delivered_t_s, delay_s)`` (what
+#: :meth:`~teleop.transport.bus.Inbox.release` reads of a ``Delivered``)
+Due = tuple[object, float, float, float]
 
 
-def _release_t(e: Pending) -> float:
-    return e.release_t_s
+def _key(e: Entry) -> tuple[float, int]:
+    return (e[0], e[1])
+
+
+def _release_t(e: Entry) -> float:
+    return e[0]
 
 
 class FastLine:
@@ -52,7 +60,8 @@ class FastLine:
                  "last_release_t_s", "delay_sum_s", "delay_max_s")
 
     def __init__(self, s: DelayLineState) -> None:
-        self.pending: deque[Pending] = deque(s.pending)
+        self.pending: deque[Entry] = deque(
+            (e.release_t_s, e.order, e.sent_t_s, e.payload, e.duplicate) for e in s.pending)
         self.n_pushed, self.n_lost, self.n_duplicated = s.n_pushed, s.n_lost, s.n_duplicated
         self.n_delivered, self.bad = s.n_delivered, s.bad
         self.last_release_t_s = s.last_release_t_s
@@ -65,7 +74,8 @@ class FastLine:
 
     def state(self) -> DelayLineState:
         """The pure state of this line now."""
-        return DelayLineState(tuple(self.pending), self.n_pushed, self.n_lost,
+        return DelayLineState(tuple(Pending(*e) for e in self.pending),  # type: ignore[arg-type]
+                              self.n_pushed, self.n_lost,
                               self.n_duplicated, self.n_delivered, self.bad,
                               self.last_release_t_s, self.delay_sum_s, self.delay_max_s)
 
@@ -79,13 +89,13 @@ class FastLine:
                 self.n_lost += 1
                 return
         release, self.last_release_t_s = plain_release(params, t_s, self.last_release_t_s)
-        entry = Pending(release, 2 * i, t_s, payload, False)  # type: ignore[arg-type]
+        entry = (release, 2 * i, t_s, payload, False)
         pending = self.pending
         if not pending:
             pending.append(entry)
             return
         last = pending[-1]
-        lt = last.release_t_s
+        lt = last[0]
         # ``_key(last) <= _key(entry)`` for the usual case (two comparisons, no tuples);
         # anything else (equal or unordered times) asks the tuples themselves
         if lt < release or _key(last) <= _key(entry):
@@ -96,23 +106,35 @@ class FastLine:
             self.pending = deque(ordered)
 
     def pop_due(self, t_s: float) -> list[Delivered]:
-        """:func:`~teleop.transport.delay_line.delay_line_pop_due`: everything due at ``t_s``."""
+        """:func:`~teleop.transport.delay_line.delay_line_pop_due`: everything due at ``t_s``
+        (:meth:`pop_due_raw` as ``Delivered`` objects)."""
+        n = bisect.bisect_right(self.pending, t_s + TIME_EPS_S, key=_release_t)
+        got = [self.pending[j] for j in range(n)]
+        return [Delivered(e[3], e[2], e[0], t_s, r[3], e[4])  # type: ignore[arg-type]
+                for e, r in zip(got, self.pop_due_raw(t_s), strict=True)]
+
+    def pop_due_raw(self, t_s: float) -> list[Due]:
+        """:meth:`pop_due` as ``(payload, sent_t_s, delivered_t_s, delay_s)`` tuples (the same
+        releases, counters and delays; no ``Delivered`` objects)."""
         pending = self.pending
         due_t = t_s + TIME_EPS_S
-        if not pending or pending[0].release_t_s > due_t:
+        if not pending or pending[0][0] > due_t:
             return []
-        if len(pending) == 1 or pending[1].release_t_s > due_t:
+        if len(pending) == 1 or pending[1][0] > due_t:
             e = pending.popleft()
-            d = t_s - e.sent_t_s
+            sent = e[2]
+            d = t_s - sent
             self.n_delivered += 1
             self.delay_sum_s = self.delay_sum_s + (0 + d)  # sum([d]) exactly
             self.delay_max_s = max(self.delay_max_s, d)
-            return [Delivered(e.payload, e.sent_t_s, e.release_t_s, t_s, d, e.duplicate)]
+            return [(e[3], sent, t_s, d)]
         n = bisect.bisect_right(pending, due_t, key=_release_t)
-        got = [pending.popleft() for _ in range(n)]
-        out = [Delivered(e.payload, e.sent_t_s, e.release_t_s, t_s, t_s - e.sent_t_s,
-                         e.duplicate) for e in got]
-        delays = [d.delay_s for d in out]
+        popleft = pending.popleft
+        out = []
+        for _ in range(n):
+            e = popleft()
+            out.append((e[3], e[2], t_s, t_s - e[2]))
+        delays = [d[3] for d in out]
         self.n_delivered += n
         self.delay_sum_s = self.delay_sum_s + sum(delays)
         self.delay_max_s = max(self.delay_max_s, *delays)
@@ -120,4 +142,4 @@ class FastLine:
 
     def next_release_s(self) -> float | None:
         """When the next message is due (None when nothing is in flight)."""
-        return self.pending[0].release_t_s if self.pending else None
+        return self.pending[0][0] if self.pending else None

@@ -158,3 +158,25 @@ def test_a_dropped_estimate_hands_over_to_the_delayed_force_without_a_step() -> 
     # the same command zeroed by a watchdog: the force goes at once
     _, cut = two_layer.step_master(full, p, q, command((0.0,) * 6, force_n=0.0), DT)
     assert cut.force_n == 0.0
+
+
+def test_the_written_out_default_force_is_the_general_one_bit_for_bit() -> None:
+    """``_force_at``'s three-finger ``max`` path against ``_force_of`` (the reference): the
+    same float, signed zeros and NaN included."""
+    import math
+    import random
+    import struct
+
+    from teleop.control.model_render import RenderState, _force_at, _force_of, _terms
+
+    rng = random.Random(7)
+    odd = (0.0, -0.0, math.nan, math.inf, -math.inf, 1e-300)
+
+    def v(scale: float) -> float:
+        return rng.choice(odd) if rng.random() < 0.2 else scale * rng.uniform(-1.0, 2.0)
+
+    for _ in range(3000):
+        r = RenderState(contact_rad=(v(1), v(1), v(1)), stiffness_n_per_rad=(v(50), v(50), v(50)))
+        th = v(1)
+        want = _force_of(_terms(r, P), P.force_combine, P.force_max_n, th)
+        assert struct.pack("<d", _force_at(r, P, th)) == struct.pack("<d", want)

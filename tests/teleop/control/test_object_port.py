@@ -175,3 +175,39 @@ def test_pressing_is_charged_and_releasing_credited_by_the_hand_step() -> None:
     assert levels[-1] > levels[3]  # the object gave some back
     assert levels[-1] < levels[0]  # never more than it took
     assert s.ledger.port_out_j > s.ledger.port_in_j > 0.0
+
+
+def test_the_bisected_near_rows_and_written_out_sums_match_the_plain_fit() -> None:
+    """``contact_estimate`` (rows near the tracked point by bisection, cell sums written out)
+    against the plain definition: every row tested, ``sum`` of the products."""
+    from teleop.control.object_port import TRACK_STEP_M, _kernel_table
+
+    m = TactileModel()
+    rng = random.Random(5)
+
+    def plain(cells: tuple[float, ...], xs: tuple[float, ...], pad: tuple[float, float] | None,
+              near: float | None) -> tuple[float, float]:
+        p = [max(v, 0.0) if math.isfinite(v) else 0.0 for v in cells]
+        if max(p) <= m.noise_floor:
+            return 0.0, 0.0
+        strong = pad is not None and max(p) >= 4.0 * max(m.noise_floor, 1.0)
+        table = _kernel_table(m, xs, *(pad if strong and pad is not None else (xs[0], xs[-1])))
+        rows = table
+        if near is not None and near > 0.0:
+            rows = [r for r in table if abs(r[0] - near) <= TRACK_STEP_M + 1e-12] or table
+        best = (-1.0, 0.0, 0.0)
+        for x, ks, kk in rows:
+            pk = sum([a * b for a, b in zip(p, ks, strict=True)])
+            if pk * pk / kk > best[0]:
+                best = (pk * pk / kk, x, pk / kk)
+        return best[2] / m.pressure_per_n, best[1]
+
+    for _ in range(300):
+        prox = rng.random() < 0.5
+        xs = m.proximal_sensor_x_m if prox else m.distal_sensor_x_m
+        pad = (m.proximal_pad_m if prox else m.distal_pad_m) if rng.random() < 0.8 else None
+        cells = tuple(rng.choice([0.0, rng.uniform(-5, 300), rng.uniform(0, 30), math.nan])
+                      for _ in xs)
+        near = rng.choice([None, 0.0, rng.uniform(0.0, 0.07), math.inf])
+        assert repr(contact_estimate(m, cells, xs, pad, near)) == repr(plain(cells, xs, pad,
+                                                                            near))
