@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from sim.compiled_kernel import X_PHI, X_T, X_TH
+from sim.compiled_kernel import K_UPN, X_PHI, X_REF, X_T, X_TEN, X_TH, X_VM
 from sim.compiled_step import advance
 
 if TYPE_CHECKING:
@@ -59,6 +59,31 @@ def _run(x: np.ndarray, cmd: np.ndarray, steps: int, dt: float, k: np.ndarray,
 
 
 @njit(cache=True)
+def _hold(x: np.ndarray, settle: np.ndarray, goal: float, effort: float, offset: float,
+          per_unit: float, steps: int, dt: float, k: np.ndarray, dsegs: np.ndarray,
+          o: np.ndarray, e: np.ndarray, line: np.ndarray) -> None:
+    """The finger at the measured motor angle (``finger_dynamic._settled``): the shaft held
+    at ``goal - offset`` while the finger and tendon settle on it, the servo's goal kept at
+    ``goal + per_unit x`` the effort that holds the shaft against the tendon; then the goal
+    where the effort is ``effort`` (NaN: the holding one) in force, no delay line (the
+    finger was already there)."""
+    shaft = goal - offset
+    for _ in range(steps):
+        settle[1] = goal + per_unit * k[K_UPN] * x[X_TEN]
+        x[X_TH] = shaft
+        x[X_VM] = 0.0
+        advance(x, settle, k, dsegs, o, e, dt, -1.0)
+    if not math.isnan(effort):
+        settle[1] = goal + per_unit * effort
+    x[X_TH] = shaft
+    x[X_VM] = 0.0
+    x[X_REF] = settle[1]
+    line[0:5] = settle
+    line[5:10] = settle
+    line[10] = 1.0
+
+
+@njit(cache=True)
 def _prime(x: np.ndarray, t: np.ndarray, rows: np.ndarray, i: int, delay: float,
            line: np.ndarray, due: np.ndarray, queued: np.ndarray, ends: np.ndarray) -> None:
     """A segment restarting at row ``i`` with the delay line's worth of recorded commands
@@ -81,13 +106,16 @@ def _prime(x: np.ndarray, t: np.ndarray, rows: np.ndarray, i: int, delay: float,
 
 @njit(cache=True)
 def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndarray,
-                  active: np.ndarray, restart: np.ndarray, has_restart: bool, dt_s: float,
+                  active: np.ndarray, restart: np.ndarray, effort: np.ndarray,
+                  has_restart: bool, dt_s: float,
                   settle_steps: int, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
-                  e: np.ndarray, delay: float, out: np.ndarray) -> None:
+                  e: np.ndarray, delay: float, offset: float, per_unit: float,
+                  out: np.ndarray) -> None:
     """Motor and proximal angle (``out[i]``) at every active row, each row's command held for
     ``nsub[i]`` steps over the span to the next row; after inactive rows a segment restarts
-    from rest settled ``settle_steps`` at the position goal ``restart[i]``, with the
-    commands of the last delay pending (:func:`_prime`)."""
+    at the measured angle ``restart[i]`` and effort ``effort[i]`` (held ``settle_steps``:
+    :func:`_hold`; ``offset`` the sensor offset, ``per_unit`` the set-point per unit of
+    effort), with the commands of the last delay pending (:func:`_prime`)."""
     n_rows = rows.shape[0]
     cap = int(nsub.sum()) + (settle_steps + 2) * n_rows + 1
     due = np.empty(cap)
@@ -104,11 +132,9 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
             continue
         if not was_active and has_restart:
             x[:] = x0
-            line[:] = 0.0
-            line[0:5] = _HOLD
             ends[0] = ends[1]
-            settle[1] = restart[i]
-            _run(x, settle, settle_steps, dt_s, k, dsegs, o, e, delay, line, due, queued, ends)
+            _hold(x, settle, restart[i], effort[i], offset, per_unit, settle_steps, dt_s, k,
+                  dsegs, o, e, line)
             if delay > 0.0 and i > 0:
                 _prime(x, t, rows, i, delay, line, due, queued, ends)
             was_active = True
@@ -128,6 +154,7 @@ def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: 
     from sim import compiled as cp
     from sim.contact import ContactObject
     from sim.finger import initial_finger_state
+    from sim.finger_dynamic import goal_per_unit
 
     t = np.asarray(data.t_s, dtype=np.float64)
     n = len(t)
@@ -138,12 +165,15 @@ def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: 
               else np.asarray(data.active, dtype=np.bool_))
     goals = data.restart_goal_rad
     restart = np.zeros(n) if goals is None else np.asarray(goals, dtype=np.float64)
+    effort = (np.full(n, math.nan) if data.restart_effort_units is None
+              else np.asarray(data.restart_effort_units, dtype=np.float64))
     out = np.full((n, 2), math.nan)
     k, dsegs = cp.pack_params(p)
     simulate_rows(cp.state_array(initial_finger_state(p)), t, _rows(data.commands), nsub,
-                  active, restart, goals is not None, float(dt_s), int(settle_s / dt_s), k,
+                  active, restart, effort, goals is not None, float(dt_s), int(settle_s / dt_s), k,
                   dsegs, cp.pack_object(ContactObject(kind="none")), cp.pack_effects(eff),
-                  float(cp.command_delay(p, eff)), out)
+                  float(cp.command_delay(p, eff)), float(eff.sensor_offset),
+                  goal_per_unit(p, eff), out)
     off = eff.sensor_offset
     if data.output == "motor_angle_rad":
         y = (out[:, 0] + off) * data.out_scale

@@ -69,6 +69,7 @@ class DynamicData:
     active: Array | None = None  # rows simulated (False: contact, excluded); None: all
     restart_goal_rad: Array | None = None  # shaft angle to settle at when a segment restarts
     note: str = ""          # what was excluded, for the report
+    restart_effort_units: Array | None = None  # servo effort measured there (NaN: holding)
 
     def split(self, block: int = 10, every: int = 4) -> tuple[Array, Array]:
         """Training and held-out positions in ``keep``: every ``every``-th block of ``block``
@@ -108,7 +109,7 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
                        np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
 
 
-SETTLE_S = 1.0  # rest after a restart: the free finger crosses its travel at the driver's speed
+SETTLE_S = 1.0  # the held finger comes to rest well within this (and any dead time)
 
 
 def settle_s(eff: EffectSet) -> float:
@@ -116,14 +117,37 @@ def settle_s(eff: EffectSet) -> float:
     return SETTLE_S + eff.dead_time
 
 
+def goal_per_unit(p: FingerParams, eff: EffectSet) -> float:
+    """Servo set-point above the angle it reads (shaft rad) per unit of effort: the P
+    controller's effort is ``kp (set-point - reading)`` times any ``actuator_gain``."""
+    return 1.0 / (p.kp_units_per_rad * eff.actuator_gain)
+
+
 def _settled(p: FingerParams, eff: EffectSet, goal_rad: float, obj: ContactObject,
-             dt_s: float) -> FingerState:
-    """The free finger at rest under a position goal (a segment restarting after contact)."""
+             dt_s: float, effort_units: float = math.nan) -> FingerState:
+    """The free finger at a measured motor angle (a segment restarting after contact or a
+    gap).  The shaft is held at the angle the servo reads as ``goal_rad`` (``goal_rad -
+    sensor_offset``) while the finger and tendon come to rest on it, the servo's set-point
+    kept where its effort holds the shaft against the tension.  Released, the servo's
+    set-point is where its effort is the one measured at the restart (``effort_units``;
+    NaN: the holding one), so a finger the servo was driving on keeps being driven.
+    (Settling from rest under the measured angle as the goal stopped short of it: a loaded
+    P servo's standing error and slow approach, 0.07-0.48 rad at the recorded angles, which
+    a sensor offset then absorbed.)"""
     state = initial_finger_state(p)
+    shaft = goal_rad - eff.sensor_offset
+    per_unit = goal_per_unit(p, eff)
     cmd = MotorCommand("position", goal_rad=goal_rad)
     for _ in range(int(settle_s(eff) / dt_s)):
+        cmd = MotorCommand("position",
+                           goal_rad=goal_rad + per_unit * p.units_per_n * state.tendon_force_n)
+        state = replace(state, motor_rad=shaft, motor_vel_rad_s=0.0, command=(cmd, cmd, ()))
         state = finger_step(state, cmd, p, obj, eff, dt_s)
-    return state
+    if math.isfinite(effort_units):
+        cmd = MotorCommand("position", goal_rad=goal_rad + per_unit * effort_units)
+    gap, _, u, u_cmd = state.drive
+    return replace(state, motor_rad=shaft, motor_vel_rad_s=0.0, command=(cmd, cmd, ()),
+                   drive=(gap, cmd.goal_rad, u, u_cmd))
 
 
 def _primed(state: FingerState, data: DynamicData, i: int, delay_s: float) -> FingerState:
@@ -148,7 +172,7 @@ def _primed(state: FingerState, data: DynamicData, i: int, delay_s: float) -> Fi
 def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float,
                      engine_name: str = DEFAULT_ENGINE) -> Array:
     """Simulated output at every recorded sample, from rest at the first one (NaN on rows
-    that are not simulated; a segment after them restarts settled at the measured angle,
+    that are not simulated; a segment after them restarts at the measured angle and load,
     with the commands recorded over the last delay still to come: :func:`_primed`).
     ``engine_name`` "compiled" runs it in one compiled call (``sim.compiled_dynamic``)."""
     if engine(engine_name).name == "compiled":
@@ -167,7 +191,9 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
             was_active = False
             continue
         if not was_active and data.restart_goal_rad is not None:
-            state = _settled(p, eff, float(data.restart_goal_rad[i]), obj, dt_s)
+            effort = (math.nan if data.restart_effort_units is None
+                      else float(data.restart_effort_units[i]))
+            state = _settled(p, eff, float(data.restart_goal_rad[i]), obj, dt_s, effort)
             delay = p.command_delay_s + eff.dead_time
             if delay > 0.0 and i > 0:
                 state = _primed(state, data, i, delay)

@@ -13,9 +13,11 @@ Columns used for finger ``N`` (1-3):
   ``# load_filter:``); the targets it wrote are rebuilt from ``motor_load_units_fN`` and the
   motor angle (:func:`dynamixel_targets`), and the moves are paced at that speed;
 * contact: ``contacts_fN`` (sensors in contact).  Rows in contact are excluded: the object is
-  not known from the recording.  The simulation stops there and restarts after the contact,
-  settled at the measured motor angle; the first ``SETTLE_ROWS_S`` after a restart are not
-  compared (the finger may still be moving).
+  not known from the recording.  The simulation stops there and restarts after the contact
+  (and after a gap, ``--split-gaps``) at the measured state: the finger at rest on the
+  measured motor angle, the servo's effort the recorded ``motor_load_units_fN`` (without
+  that column, the effort that holds the finger there); the first ``SETTLE_ROWS_S`` after a
+  restart are not compared (the finger's speed there is not known).
 
 The hand's own rate (40 Hz by default) and irregular timing are used as recorded.  ``t_s`` is
 the hand loop's deadline; a recording with ``read_t_s`` and ``write_t_s`` (when the hand service
@@ -135,7 +137,8 @@ def on_clock(data: DynamicData, read_t_s: np.ndarray, write_t_s: np.ndarray,
 
     return DynamicData(t, cmds, np.repeat(data.y, 2), data.output, 2 * data.keep,
                        data.physics_dt_s, data.out_scale, twice(data.active),
-                       twice(data.restart_goal_rad), data.note)
+                       twice(data.restart_goal_rad), data.note,
+                       twice(data.restart_effort_units))
 
 
 def _clock_columns(rec: Recording) -> tuple[np.ndarray, np.ndarray] | None:
@@ -195,11 +198,14 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
                      for g, m, f in zip(goals, modes, forces, strict=True))
 
     cmds = commands(goal, mode, force)
+    # the servo's effort where a segment restarts (an empty cell: the effort that holds it)
+    load = (rec.column(f"motor_load_units_f{finger}")
+            if rec.has(f"motor_load_units_f{finger}") else None)
     contact = (rec.column(f"contacts_f{finger}") > 0 if rec.has(f"contacts_f{finger}")
                else np.zeros(len(t), bool))
     active = ~contact
     # a recording cut after its start (--skip) begins with the finger anywhere: the first row
-    # is not simulated, the next restarts settled at the measured angle (as after a contact)
+    # is not simulated, the next restarts at the measured angle (as after a contact)
     active[0] = active[0] and abs(float(motor[0])) < START_OPEN_RAD
     active[gaps] = False  # the row before a gap is not simulated: the next one restarts
     compare = active.copy()
@@ -224,8 +230,8 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
         notes.append(f"{int(contact.sum())} of {len(t)} rows in contact ('contacts_f{finger}' "
                      f"> 0, {float(np.sum(np.diff(t)[contact[:-1]])):.1f} s) excluded: the "
                      f"object is not in the recording; the simulation restarts {n_seg} time(s) "
-                     f"settled at the measured motor angle, {SETTLE_ROWS_S:g} s after each not "
-                     "compared")
+                     f"at the measured motor angle{' and load' if load is not None else ''}, "
+                     f"{SETTLE_ROWS_S:g} s after each not compared")
     clock = _clock_columns(rec)
     if clock is None:
         notes.append("no 'read_t_s'/'write_t_s' columns: read and written at 't_s' (the "
@@ -235,7 +241,7 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
                        out_scale=1.0 / JOINT_RATIO if output == "motor_angle_rad" else 1.0,
                        active=None if active.all() else active,
                        restart_goal_rad=JOINT_RATIO * motor,  # joint-side motor angle -> shaft
-                       note=note)
+                       restart_effort_units=load, note=note)
     if clock is None:
         return data
     return on_clock(data, clock[0], clock[1], commands(read_goal, read_mode, read_force))

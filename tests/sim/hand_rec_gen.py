@@ -37,13 +37,14 @@ def setpoints(rng: np.random.Generator, t: np.ndarray, max_rad: float = 2.5) -> 
 
 def hand_recording(path: Path, seconds: float, seed: int, effects: EffectSet = EffectSet(),
                    obj: str = "none", max_rad: float = 2.5, late_s: float = 0.0,
-                   clock_columns: bool = False) -> Path:
+                   clock_columns: bool = False, load_column: bool = False) -> Path:
     """Write a hand recording (finger 1 driven; fingers 2 and 3 follow at lower set-points).
 
     ``late_s``: each tick reads the hand up to that late after its deadline ``t_s`` (uniform;
     one tick in ten up to 4x that, as a loaded host's loop catching up) and writes the
     set-points 2-15 ms after the read; ``clock_columns`` records those times as the hand
-    service does (``read_t_s``, ``write_t_s``)."""
+    service does (``read_t_s``, ``write_t_s``); ``load_column`` the servos' present load
+    (``motor_load_units_fN``, as every hand service recording has it)."""
     rng = np.random.default_rng(seed)
     cfg = load_config(None, [f"hand.sim.object.kind={obj}", "hand.sim.noise=true"])
     hand = SimHand(cfg.hand, seed=seed, effects=effects)
@@ -57,7 +58,8 @@ def hand_recording(path: Path, seconds: float, seed: int, effects: EffectSet = E
     cols: dict[str, list[float]] = {k: [] for k in (
         "t_s", *(f"{n}_f{i}" for n in ("proximal_angle_rad", "motor_angle_rad", "contacts",
                                        "setpoint_rad") for i in (1, 2, 3)),
-        *(("read_t_s", "write_t_s") if clock_columns else ()))}
+        *(("read_t_s", "write_t_s") if clock_columns else ()),
+        *((f"motor_load_units_f{i}" for i in (1, 2, 3)) if load_column else ()))}
     n = len(t)
     late = late_s * rng.uniform(0.0, 1.0, n) * np.where(rng.random(n) < 0.1, 4.0, 1.0)
     took = rng.uniform(0.002, 0.015, n) if late_s > 0 else np.zeros(n)
@@ -81,6 +83,23 @@ def hand_recording(path: Path, seconds: float, seed: int, effects: EffectSet = E
             cols[f"motor_angle_rad_f{i}"].append(f.motor_angle_rad)
             cols[f"contacts_f{i}"].append(float(sum(f.contact)))
             cols[f"setpoint_rad_f{i}"].append(sps[i - 1])
+            if load_column:
+                cols[f"motor_load_units_f{i}"].append(round(f.load_units))
     write_recording(path, Recording.from_columns(cols, meta=(("role", "hand"),
                                                              ("rate_hz", "40"))))
     return path
+
+
+def flag_moving(rec: Recording, n: int = 3, rows: int = 6) -> Recording:
+    """``rec`` with ``rows`` rows flagged as contact (``contacts_f1``) before each of the
+    ``n`` fastest moves of finger 1's motor, as the dynamixel driver flags free-air rows from
+    the load: the simulation restarts there, mid-motion."""
+    data = rec.data.copy()
+    col = rec.columns.index("contacts_f1")
+    speed = np.abs(np.gradient(rec.column("motor_angle_rad_f1")))
+    speed[:20] = speed[-10:] = 0.0  # not at the ends
+    for _ in range(n):
+        i = int(np.argmax(speed))
+        data[i - rows:i, col] = 1.0
+        speed[max(0, i - 30):i + 30] = 0.0
+    return Recording(rec.columns, data, rec.meta, source=rec.source)

@@ -146,8 +146,9 @@ def test_bench_loops_follow_the_python_benchmark() -> None:
 
 @pytest.mark.parametrize("exp", ["force-blocks", "position"])
 def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
-    """``simulate_dynamic`` (the fit's inner loop): delay line, excluded rows and settled
-    restarts, sub-stepping and a coarser step, on both engines."""
+    """``simulate_dynamic`` (the fit's inner loop): delay line, excluded rows and restarts
+    held at the measured angle (holding, or at a measured effort), sub-stepping and a coarser
+    step, on both engines."""
     from sim.finger_dynamic import dynamic_data, simulate_dynamic
 
     p = default_finger_params()
@@ -157,9 +158,11 @@ def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
     active = np.ones(len(data.t_s), dtype=bool)
     active[4000:4500] = False
     cut = replace(data, active=active, restart_goal_rad=np.full(len(data.t_s), 0.5))
+    # restarting at a measured effort (a hand recording's load) instead of the holding one
+    loaded = replace(cut, restart_effort_units=np.full(len(data.t_s), -150.0))
     eff = EffectSet(dead_time=0.03, backlash=0.02, stiction=1.0, sensor_offset=0.01)
-    for d in (data, cut):
-        for dt in (2e-3, 5e-4):
+    for d, steps in ((data, (2e-3, 5e-4)), (cut, (2e-3, 5e-4)), (loaded, (2e-3,))):
+        for dt in steps:
             a, b = (simulate_dynamic(p, eff, d, dt, e) for e in ENGINES)
             assert np.array_equal(np.isnan(a), np.isnan(b))
             assert np.nanmax(np.abs(a - b)) <= TOL_RAD and np.ptp(b[~np.isnan(b)]) > 0.1

@@ -12,13 +12,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hand_rec_gen import hand_recording  # tests/sim/hand_rec_gen.py
+from hand_rec_gen import flag_moving, hand_recording  # tests/sim/hand_rec_gen.py
 
 from sim.finger_hand_rec import dynamixel_targets, hand_finger_data
 from teleop.cli import main
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
-from teleop.recording import Recording, read_recording
+from teleop.recording import Recording, read_recording, write_recording
 
 
 def _diagnose(path: Path, tmp_path: Path, *extra: str) -> dict:  # type: ignore[type-arg]
@@ -48,6 +48,24 @@ def test_a_clean_hand_recording_reports_no_effect(tmp_path: Path) -> None:
                                    clock_columns=True), tmp_path)
     assert doc["effects"] == [], doc["effects"]
     assert doc["unexplained"] is None
+
+
+def test_a_sensor_offset_is_named_across_restarts(tmp_path: Path) -> None:
+    """A real offset on the angle sensors (0.2 rad), segments restarting mid-motion: named on
+    the proximal angle (measured 0.198, score 369).  On the motor angle a position servo
+    follows its own reading, so there an offset barely shows (and none is named); it used to
+    be named at its 0.5 rad bound on the motor angle of recordings with restarts, with or
+    without one (the restart's settle error, docs/diagnose-results.md).  Two flagged
+    stretches: with a third the noise floor, estimated across the cut, rises to 0.013 rad
+    and the selection stops there (open)."""
+    path = tmp_path / "hand.csv"
+    rec = read_recording(hand_recording(path, 4.0, seed=6, effects=EffectSet(sensor_offset=0.2),
+                                        late_s=0.01, clock_columns=True, load_column=True))
+    write_recording(path, flag_moving(rec, n=2))
+    doc = _diagnose(path, tmp_path, "--output", "proximal_angle_rad")
+    assert "restarts 3 time(s)" in doc["note"]  # two flagged, and the offset start
+    assert [e["name"] for e in doc["effects"]] == ["sensor_offset"], doc["effects"]
+    assert doc["effects"][0]["params"]["sensor_offset"] == pytest.approx(0.2, abs=0.03)
 
 
 @pytest.mark.slow

@@ -121,17 +121,28 @@ def test_a_dead_time_in_the_emulated_servos_is_named_from_the_up_recording(
     assert not why, why
     first = doc["effects"][0]
     found = first["params"][first["name"]]
-    # dead time measured 0.117-0.193 s for 0.2 s, an actuator lag standing in for it 0.147 s:
-    # the driver's load-estimated contacts and bus-retry gaps restart the simulation from
-    # rest, which the delay partly hides
+    # dead time measured 0.117-0.193 s for 0.2 s, an actuator lag standing in for it 0.147 s,
+    # while a restart (the driver's load-estimated contacts, bus-retry gaps) settled from
+    # rest; 0.214 s since it starts at the measured angle and load
     assert 0.4 * DEAD_TIME_S < found < 1.5 * DEAD_TIME_S, first
     assert first["holdout_gain"] > 0.3
     # RSS down by more than a quarter (NRMSE x 0.85), as the held-out gain above; measured
     # NRMSE x 0.65-0.84 (x 0.84: actuator_lag first, with the note)
     assert doc["fit"]["after"]["nrmse"] < 0.85 * doc["fit"]["before"]["nrmse"]
+    # the emulator has no sensor offset: one named stands in for the error of the segments
+    # restarted after a gap or a flagged stretch (it was named at its 0.5 rad bound on every
+    # run while a restart settled the finger from rest and stopped short of the measured
+    # angle; now it starts there, at the measured load: tests/sim/test_finger_hand_clock.py)
+    assert "sensor_offset" not in named_effects(doc), doc["effects"]
 
     clean = _diagnose(_record(tmp_path, "clean", ()))
-    named = {e["name"]: e["params"][e["name"]] for e in clean["effects"]}
+    named = named_effects(clean)
     # the dynamixel path has no such delay, nor a lag that could stand in for one
     assert named.get("dead_time", 0.0) < 0.25 * DEAD_TIME_S, clean["effects"]
     assert named.get("actuator_lag", 0.0) < 0.25 * DEAD_TIME_S, clean["effects"]
+    assert "sensor_offset" not in named, clean["effects"]
+
+
+def named_effects(doc: dict) -> dict[str, float]:
+    """The effects a report names, by name (their values)."""
+    return {e["name"]: e["params"][e["name"]] for e in doc["effects"]}
