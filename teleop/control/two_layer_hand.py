@@ -247,15 +247,16 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     "servo"``), then the contact models (:mod:`teleop.control.contact_model`) on the set-point
     that was in force over the sample, the measured motor angles and peak pressures."""
     step = step_hand_object if p.hand_port == "object" else step_hand_servo
-    if p.contact_model is not None:
-        command = hand_touch_cap(p, s.models, s.touch_since, command,
-                                 max_pressures(fingers, p), measure_hand(s, fingers))
+    if p.contact_model is None:
+        return step(s, p, fingers, command, dt_s)
+    peaks = max_pressures(fingers, p)  # for the cap and the models: computed once
+    command = hand_touch_cap(p, s.models, s.touch_since, command, peaks,
+                             measure_hand(s, fingers))
     ns, out = step(s, p, fingers, command, dt_s)
-    if p.contact_model is None or s.setpoint_prev is None:
+    if s.setpoint_prev is None:
         return ns, out
     assert ns.x_prev is not None  # both layers keep this sample's measured motor angles
-    models = step_models(s.models, p.contact_model, s.setpoint_prev, ns.x_prev,
-                         max_pressures(fingers, p), dt_s)
+    models = step_models(s.models, p.contact_model, s.setpoint_prev, ns.x_prev, peaks, dt_s)
     since = touch_since(s.touch_since, models, t_s)
     return (replace(ns, models=models, touch_since=since),
             replace(out, contact_model=model_wire(models),
