@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 
-from teleop.control.energy_channel import EnergyLedger
+from teleop.control.energy_channel import EnergyLedger, book
 from teleop.control.energy_tank import port_work_j, split_work
 from teleop.control.interface import ControllerOutput, ControlParams, HandOutput, MasterOutput
 from teleop.control.passivity_layer import spring_energy_j
@@ -46,10 +46,7 @@ def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
     q, dq, v = measure_master(s, grip_position_m, dt_s)
     took, gave = split_work(port_work_j(s.force_prev_n, dq))
     led = s.ledger
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=led.tank_j + took - gave,
-                       port_in_j=led.port_in_j + took, port_out_j=led.port_out_j + gave,
-                       sent_j=led.sent_j, received_j=led.received_j,
-                       dissipated_j=led.dissipated_j)
+    led = book(led, led.tank_j + took - gave, port_in_j=took, port_out_j=gave)
     f = clip(command.force_n, p.force_max_n) if command is not None else 0.0
     out = MasterOutput(force_n=f, grip_position_m=q, grip_velocity_m_s=v, energy_total_j=0.0,
                        ledger=led, force_desired_n=f, limited=False, tlc_damping_n_s_per_m=0.0)
@@ -90,10 +87,7 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     y = desired_setpoints(command, y_prev)
     e = spring_energy_j(y, x, k, tmax) - spring_energy_j(y_prev, x, k, tmax) - d_j
     led = s.ledger
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=led.tank_j - e,
-                       port_in_j=led.port_in_j + max(-e, 0.0),
-                       port_out_j=led.port_out_j + max(e, 0.0), sent_j=led.sent_j,
-                       received_j=led.received_j, dissipated_j=led.dissipated_j)
+    led = book(led, led.tank_j - e, port_in_j=max(-e, 0.0), port_out_j=max(e, 0.0))
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=0.0, ledger=led,
                      setpoint_desired_rad=y, limited=False,

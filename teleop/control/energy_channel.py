@@ -55,6 +55,18 @@ class EnergyLedger:
     dissipated_j: float = 0.0
 
 
+def book(led: EnergyLedger, tank_j: float, port_in_j: float = 0.0, port_out_j: float = 0.0,
+         sent_j: float = 0.0, received_j: float = 0.0,
+         dissipated_j: float = 0.0) -> EnergyLedger:
+    """``led`` after one sample: the tank now at ``tank_j``, each cumulative account raised by
+    this sample's amount (``initial_j`` kept)."""
+    return EnergyLedger(initial_j=led.initial_j, tank_j=tank_j,
+                        port_in_j=led.port_in_j + port_in_j,
+                        port_out_j=led.port_out_j + port_out_j, sent_j=led.sent_j + sent_j,
+                        received_j=led.received_j + received_j,
+                        dissipated_j=led.dissipated_j + dissipated_j)
+
+
 def ledger_residual_j(led: EnergyLedger) -> float:
     """initial + in + received - out - sent - dissipated - tank (zero for exact bookkeeping)."""
     return (led.initial_j + led.port_in_j + led.received_j - led.port_out_j - led.sent_j

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from teleop.control.energy_channel import EnergyLedger, receive_total
+from teleop.control.energy_channel import EnergyLedger, book, receive_total
 from teleop.control.energy_tank import (
     cap_tank,
     franken_limit,
@@ -72,9 +72,8 @@ def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
     f_des = clip(command.force_n, p.force_max_n) if command is not None else 0.0
     f_t = franken_limit(f_des, v, budget, dt_s)
     f = guard_force(f_t, budget, v, p.trigger_max_speed_m_s, dt_s)
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=budget, port_in_j=led.port_in_j + took,
-                       port_out_j=led.port_out_j + gave, sent_j=led.sent_j + took,
-                       received_j=led.received_j + inc, dissipated_j=led.dissipated_j + diss)
+    led = book(led, budget, port_in_j=took, port_out_j=gave, sent_j=took, received_j=inc,
+               dissipated_j=diss)
     out = MasterOutput(force_n=f, grip_position_m=q, grip_velocity_m_s=v,
                        energy_total_j=led.sent_j, ledger=led, force_desired_n=f_des,
                        limited=f != f_des, tlc_damping_n_s_per_m=0.0)
@@ -128,10 +127,8 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     y, dp, limited = pspm_project(want, y_prev, x, budget + d_j, k, tmax)
     e = dp - d_j
     took, gave = max(-e, 0.0), max(e, 0.0)
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=budget - gave,
-                       port_in_j=led.port_in_j + took, port_out_j=led.port_out_j + gave,
-                       sent_j=led.sent_j + took, received_j=led.received_j + inc,
-                       dissipated_j=led.dissipated_j + diss)
+    led = book(led, budget - gave, port_in_j=took, port_out_j=gave, sent_j=took,
+               received_j=inc, dissipated_j=diss)
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited,

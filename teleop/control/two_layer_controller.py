@@ -122,6 +122,7 @@ def step_controller(s: ControllerStoreState, p: ControlParams, master: MasterSta
     to_h = p.controller_split * out
     to_m = (out - to_h) / rho
     store -= out
+    # (the received total is added as (received + rho inc_m) + inc_h, so not through book())
     led = EnergyLedger(initial_j=led.initial_j, tank_j=store, port_in_j=led.port_in_j,
                        port_out_j=led.port_out_j, sent_j=led.sent_j + out,
                        received_j=led.received_j + rho * inc_m + inc_h,

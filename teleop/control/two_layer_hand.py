@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 from teleop.control.contact_model import FingerModel, model_wire, step_models
-from teleop.control.energy_channel import EnergyLedger, TotalReceiver, receive_total
+from teleop.control.energy_channel import EnergyLedger, TotalReceiver, book, receive_total
 from teleop.control.energy_tank import (
     cap_tank,
     quantum_j,
@@ -223,10 +223,8 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     held = hand_reservation_j(y, x, k, tmax, kt)
     send = quantum_j(tank - max(hand_hold_j(p), held), p.reserve_j, p.transfer_fraction)
     tank -= send
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=tank,
-                       port_in_j=led.port_in_j + in_j, port_out_j=led.port_out_j + out_j,
-                       sent_j=led.sent_j + send, received_j=led.received_j + inc,
-                       dissipated_j=led.dissipated_j + diss)
+    led = book(led, tank, port_in_j=in_j, port_out_j=out_j, sent_j=send, received_j=inc,
+               dissipated_j=diss)
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited, spring_energy_j=held,
@@ -290,10 +288,8 @@ def step_hand_servo(s: HandPortState, p: ControlParams, fingers: tuple[FingerSta
                                   p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm)
     tank -= dp
     e = dp - d_j
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=tank,
-                       port_in_j=led.port_in_j + max(-e, 0.0),
-                       port_out_j=led.port_out_j + max(e, 0.0), sent_j=led.sent_j + send,
-                       received_j=led.received_j + inc, dissipated_j=led.dissipated_j + diss)
+    led = book(led, tank, port_in_j=max(-e, 0.0), port_out_j=max(e, 0.0), sent_j=send,
+               received_j=inc, dissipated_j=diss)
     pre = command.preshape_rad if command is not None else p.preshape_rad
     out = HandOutput(setpoint_rad=y, preshape_rad=pre, energy_total_j=led.sent_j, ledger=led,
                      setpoint_desired_rad=want, limited=limited,

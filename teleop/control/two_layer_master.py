@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from teleop.control.energy_channel import EnergyLedger, TotalReceiver, receive_total
+from teleop.control.energy_channel import EnergyLedger, TotalReceiver, book, receive_total
 from teleop.control.energy_tank import (
     cap_tank,
     franken_limit,
@@ -89,9 +89,8 @@ def step_master(s: MasterPortState, p: ControlParams, grip_position_m: float,
     d = tlc_damping(tank, p.desired_j, p.tlc_gain, p.tlc_damping_max, p.trigger_mass_kg, dt_s)
     f_want = clip(f_t + d * v, p.force_max_n)
     f = guard_force(f_want, tank, v, p.trigger_max_speed_m_s, dt_s)
-    led = EnergyLedger(initial_j=led.initial_j, tank_j=tank, port_in_j=led.port_in_j + took,
-                       port_out_j=led.port_out_j + gave, sent_j=led.sent_j + send,
-                       received_j=led.received_j + inc, dissipated_j=led.dissipated_j + diss)
+    led = book(led, tank, port_in_j=took, port_out_j=gave, sent_j=send, received_j=inc,
+               dissipated_j=diss)
     out = MasterOutput(force_n=f, grip_position_m=q, grip_velocity_m_s=v,
                        energy_total_j=led.sent_j, ledger=led, force_desired_n=f_des,
                        limited=(f_t != f_des) or (f != f_want), tlc_damping_n_s_per_m=d,
