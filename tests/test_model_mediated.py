@@ -146,7 +146,7 @@ def test_repeated_grasps_under_delay_and_loss_all_hold_up_against_the_first(
     cfg = repeated_cfg(delay_s)
     r = runs.result(("repeated", delay_s))
     g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                            r.displayed_force_n, cfg)
+                            r.distal_rad, r.displayed_force_n, cfg)
     assert len(g.grasps) >= 7
     assert g.min_pressure_ratio >= 0.9, format_grasps(g)
     assert g.min_closure_ratio >= 0.9, format_grasps(g)

@@ -32,8 +32,9 @@ def grasps_from_recordings(master: Recording, hand: Recording) -> GraspSeries:
     t = master.t_s
     pressure = np.column_stack([_held(hand, t, f"pressure_f{i // 9 + 1}_{i % 9}")
                                 for i in range(27)])
-    fingers = np.column_stack([_held(hand, t, f"proximal_angle_rad_f{i}") for i in (1, 2, 3)])
-    return grasps_from_columns(t, master.column("trigger_position_m"), pressure, fingers,
+    prox = np.column_stack([_held(hand, t, f"proximal_angle_rad_f{i}") for i in (1, 2, 3)])
+    dist = np.column_stack([_held(hand, t, f"distal_angle_rad_f{i}") for i in (1, 2, 3)])
+    return grasps_from_columns(t, master.column("trigger_position_m"), pressure, prox, dist,
                                master.column("displayed_force_n"), load_config())
 
 

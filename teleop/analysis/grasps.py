@@ -6,8 +6,10 @@ such start (so the hand's delayed response and the release belong to it); a gras
 closed at the end of the run is incomplete and dropped.  The threshold is low (a tenth of the
 travel by default) because the displayed force holds the trigger well short of where the
 operator aims while the hand is in contact.
-Per grasp: peak pressure (largest taxel of any finger), closure (largest finger angle), felt
-force (largest displayed force), and each over the first grasp's.
+Per grasp: peak pressure (largest taxel of any finger), closure (the largest finger angle held
+for ``hold_s``, 0.1 s: a one-sample overshoot of a link at an impact is not how far the hand
+closed; the plain largest angle is kept beside it as ``peak_closure_rad``), felt force (largest
+displayed force), and each over the first grasp's.
 
 Example::
 
@@ -22,10 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import minimum_filter1d
 
 Array = NDArray[np.float64]
 
-__all__ = ["GraspStats", "GraspSeries", "grasp_windows", "analyse_grasps", "format_grasps"]
+__all__ = ["GraspStats", "GraspSeries", "grasp_windows", "held_max", "analyse_grasps",
+           "format_grasps", "HOLD_S"]
+
+#: a closure counts when a finger holds it this long (s): longer than an impact's overshoot
+#: (one or two 25 ms hand samples), shorter than any hold of a grasp
+HOLD_S = 0.1
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,6 +49,7 @@ class GraspStats:
     pressure_ratio: float  # over the first grasp's (nan when the first has none)
     closure_ratio: float
     felt_ratio: float
+    peak_closure_rad: float = math.nan  # the largest angle, however briefly
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,7 +79,8 @@ class GraspSeries:
         return [{"grasp": g.index, "t_start_s": g.t_start_s, "t_end_s": g.t_end_s,
                  "peak_pressure": g.peak_pressure, "closure_rad": g.closure_rad,
                  "felt_force_n": g.felt_force_n, "pressure_ratio": g.pressure_ratio,
-                 "closure_ratio": g.closure_ratio, "felt_ratio": g.felt_ratio}
+                 "closure_ratio": g.closure_ratio, "felt_ratio": g.felt_ratio,
+                 "peak_closure_rad": g.peak_closure_rad}
                 for g in self.grasps]
 
 
@@ -98,13 +108,32 @@ def grasp_windows(t_s: Array, trigger_m: Array, threshold_m: float) -> list[tupl
     return out
 
 
+def held_max(t_s: Array, q: Array, hold_s: float = HOLD_S) -> float:
+    """The largest value any column of ``q`` ((n, k), sampled and held at ``t_s``) keeps for
+    ``hold_s`` or longer (nan when the span is shorter; the plain largest for ``hold_s <=
+    0``).  The samples are held onto a grid of a tenth of ``hold_s``; the value kept over a
+    window is its smallest sample."""
+    t = np.asarray(t_s, float)
+    if hold_s <= 0.0:
+        return float(np.asarray(q, float).max(initial=-np.inf))
+    if len(t) < 2 or t[-1] - t[0] < hold_s:
+        return math.nan
+    step = hold_s / 10.0
+    grid = np.arange(t[0], t[-1], step)
+    held = np.asarray(q, float).reshape(len(t), -1)[np.searchsorted(t, grid, "right") - 1]
+    kept = minimum_filter1d(held, size=11, axis=0, mode="constant", cval=-np.inf)
+    return float(kept.max())
+
+
 def _ratio(v: float, first: float) -> float:
     return v / first if first > 0 and math.isfinite(first) else math.nan
 
 
 def analyse_grasps(t_s: Array, trigger_m: Array, pressure: Array, finger_rad: Array,
-                   displayed_force_n: Array, threshold_m: float) -> GraspSeries:
-    """Per-grasp peak pressure, closure and felt force, and each over the first grasp's.
+                   displayed_force_n: Array, threshold_m: float,
+                   hold_s: float = HOLD_S) -> GraspSeries:
+    """Per-grasp peak pressure, closure (held ``hold_s``) and felt force, and each over the
+    first grasp's.
 
     ``pressure``: (n, k) taxels; ``finger_rad``: (n, fingers) joint angles.
     """
@@ -115,14 +144,14 @@ def analyse_grasps(t_s: Array, trigger_m: Array, pressure: Array, finger_rad: Ar
     raw = []
     for a, b in grasp_windows(t, trigger_m, threshold_m):
         m = (t >= a) & (t < b) if b > a else (t >= a)
-        raw.append((a, b, float(p[m].max(initial=0.0)), float(q[m].max(initial=-np.inf)),
-                    float(f[m].max(initial=0.0))))
+        raw.append((a, b, float(p[m].max(initial=0.0)), held_max(t[m], q[m], hold_s),
+                    float(f[m].max(initial=0.0)), float(q[m].max(initial=-np.inf))))
     if not raw:
         return GraspSeries(())
-    _, _, p0, q0, f0 = raw[0]
+    _, _, p0, q0, f0, _ = raw[0]
     return GraspSeries(tuple(
-        GraspStats(i, a, b, pk, cl, fe, _ratio(pk, p0), _ratio(cl, q0), _ratio(fe, f0))
-        for i, (a, b, pk, cl, fe) in enumerate(raw)))
+        GraspStats(i, a, b, pk, cl, fe, _ratio(pk, p0), _ratio(cl, q0), _ratio(fe, f0), top)
+        for i, (a, b, pk, cl, fe, top) in enumerate(raw)))
 
 
 def format_grasps(series: GraspSeries, every: int = 1) -> str:

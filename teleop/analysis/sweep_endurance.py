@@ -50,10 +50,16 @@ def grasp_threshold_m(cfg: TeleopConfig) -> float:
     return 0.1 * cfg.master.virtual.closed_fraction * cfg.master.travel_m
 
 
-def grasps_from_columns(t_s: Array, trigger_m: Array, pressure: Array, finger_rad: Array,
-                        displayed_force_n: Array, cfg: TeleopConfig) -> GraspSeries:
-    """:func:`analyse_grasps` with the configuration's grasp threshold."""
-    return analyse_grasps(t_s, trigger_m, pressure, finger_rad, displayed_force_n,
+def grasps_from_columns(t_s: Array, trigger_m: Array, pressure: Array, proximal_rad: Array,
+                        distal_rad: Array, displayed_force_n: Array,
+                        cfg: TeleopConfig) -> GraspSeries:
+    """:func:`analyse_grasps` with the configuration's grasp threshold; a finger's closure is
+    its curl, proximal + distal ((n, fingers) each): how far the tendon closed it.  The
+    proximal angle alone is how an underactuated finger shares that curl between its links,
+    which differs between grasps of equal force (the hard operator on the block: 0.078-0.091
+    rad at 4,992-4,995 each) and overshoots for a sample at an impact."""
+    curl = np.asarray(proximal_rad, float) + np.asarray(distal_rad, float)
+    return analyse_grasps(t_s, trigger_m, pressure, curl, displayed_force_n,
                           grasp_threshold_m(cfg))
 
 
@@ -116,7 +122,8 @@ def format_endurance(result: SweepResult, every: int = 20) -> str:
         gs = GraspSeries(tuple(GraspStats(g["grasp"], g["t_start_s"], g["t_end_s"],
                                           g["peak_pressure"], g["closure_rad"],
                                           g["felt_force_n"], g["pressure_ratio"],
-                                          g["closure_ratio"], g["felt_ratio"])
+                                          g["closure_ratio"], g["felt_ratio"],
+                                          g.get("peak_closure_rad", float("nan")))
                                for g in ex.get("grasps", [])))
         m = r.metrics
         lines.append(

@@ -173,7 +173,8 @@ def lockstep_endurance_runner(cfg: TeleopConfig, duration_s: float
     _quiet_transport()
     res = run_lockstep(cfg, duration_s)
     grasps = grasps_from_columns(res.t_s, res.trigger_position_m, res.pressure,
-                                 res.proximal_rad, res.displayed_force_n, cfg)
+                                 res.proximal_rad, res.distal_rad,
+                                 res.displayed_force_n, cfg)
     return signals_from_lockstep(res, cfg), grasps
 
 

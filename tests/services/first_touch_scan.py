@@ -33,7 +33,7 @@ def main(argv: list[str]) -> None:
                 f"links.controller_hand.delay_s={delay}", *extra]), obj)
             r = run_lockstep(cfg, secs, seed=1)
             g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                                    r.displayed_force_n, cfg)
+                                    r.distal_rad, r.displayed_force_n, cfg)
             peaks = [int(s.peak_pressure) for s in g.grasps]
             closures = [round(s.closure_rad, 3) for s in g.grasps]
             felt = min(s.felt_ratio for s in g.grasps)

@@ -20,7 +20,7 @@ def test_the_hard_operator_grasps_the_block_again_and_again() -> None:
     cfg = with_object(load_config(None, ["master.virtual.style=hard"]), "block")
     r = run_lockstep(cfg, 15.0, seed=1)
     series = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                                 r.displayed_force_n, cfg)
+                                 r.distal_rad, r.displayed_force_n, cfg)
     grasps = series.grasps
     assert len(grasps) >= 3
     peak = r.pressure.max(axis=1)

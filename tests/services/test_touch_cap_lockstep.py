@@ -46,7 +46,7 @@ def peaks(seconds: float = 15.0, links: tuple[str, ...] = SLOW_LINKS,
     finally:
         two_layer_hand.hand_touch_cap = original
     g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                            r.displayed_force_n, cfg)
+                            r.distal_rad, r.displayed_force_n, cfg)
     return [s.peak_pressure for s in g.grasps]
 
 

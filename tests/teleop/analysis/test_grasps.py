@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from teleop.analysis.grasps import analyse_grasps, format_grasps, grasp_windows
+from teleop.analysis.grasps import analyse_grasps, format_grasps, grasp_windows, held_max
 
 T = np.arange(0.0, 30.0, 1e-2)
 
@@ -56,3 +56,39 @@ def test_no_grasp_gives_nan() -> None:
     g = analyse_grasps(T, np.zeros_like(T), np.zeros((len(T), 27)), np.zeros((len(T), 3)),
                        np.zeros_like(T), 0.0025)
     assert g.grasps == () and math.isnan(g.min_pressure_ratio)
+
+
+def test_closure_is_the_angle_held_not_an_impact_overshoot() -> None:
+    """The first grasp's link overshoots for one 25 ms hand sample at the impact (0.12 rad,
+    then 0.08 held); the second holds 0.103 for 0.3 s and spikes to 0.2 for 40 ms.  Held
+    closures 0.08 and 0.103; the plain largest angles (kept beside) 0.12 and 0.2."""
+    t = np.arange(0.0, 9.0, 1e-3)
+    x = trigger(t)
+    q = np.where(x > 0, 0.08, 0.0)
+    q[(t >= 1.0) & (t < 1.025)] = 0.12  # grasp 0: impact overshoot, one hand sample
+    q[(t >= 5.5) & (t < 5.8)] = 0.103  # grasp 1: the touch held 0.3 s
+    q[(t >= 6.0) & (t < 6.04)] = 0.2  # a 40 ms spike later in it: not held either
+    p = np.zeros((len(t), 27))
+    p[:, 4] = np.where(x > 0, 100.0, 0.0)
+    g = analyse_grasps(t, x, p, q[:, None], x, 0.0025)
+    assert len(g.grasps) == 2
+    g0, g1 = g.grasps[0], g.grasps[1]
+    assert g0.closure_rad == pytest.approx(0.08) and g0.peak_closure_rad == pytest.approx(0.12)
+    assert g1.closure_rad == pytest.approx(0.103) and g1.peak_closure_rad == pytest.approx(0.2)
+    assert g1.closure_ratio == pytest.approx(0.103 / 0.08)
+    plain = analyse_grasps(t, x, p, q[:, None], x, 0.0025, hold_s=0.0)
+    assert plain.grasps[1].closure_ratio == pytest.approx(0.2 / 0.12)
+
+
+def test_held_max_keeps_a_hold_of_exactly_the_window_and_drops_a_shorter_one() -> None:
+    t = np.arange(0.0, 2.0, 1e-3)
+    q = np.zeros((len(t), 2))
+    q[(t >= 0.5) & (t < 0.61), 0] = 1.0  # 110 ms: held
+    q[(t >= 1.0) & (t < 1.08), 1] = 2.0  # 80 ms: not
+    assert held_max(t, q, 0.1) == pytest.approx(1.0)
+    assert math.isnan(held_max(t[:50], q[:50], 0.1))  # shorter than the window
+    hand = np.arange(0.0, 2.0, 0.025)  # hand-rate samples, irregular by a jitter
+    hand = hand + np.random.default_rng(0).uniform(0, 0.004, len(hand))
+    qh = np.where((hand >= 0.5) & (hand < 0.65), 1.0, 0.0)[:, None]
+    assert held_max(hand, qh, 0.1) == pytest.approx(1.0)
+    assert held_max(hand, qh, 0.2) == pytest.approx(0.0)
