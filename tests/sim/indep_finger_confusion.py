@@ -93,6 +93,18 @@ def table(out: list[Outcome]) -> str:
     return "\n".join(rows)
 
 
+def by_kind(out: list[Outcome]) -> str:
+    """Catalog effects ranked first and clean called clean, per input kind."""
+    parts = []
+    for kind in ("force", "position"):
+        conc = [o for o in out if o.kind == kind and o.concealed not in (None, "cogging")]
+        first = sum(bool(o.named) and o.names[0] == o.concealed for o in conc)
+        clean = [o for o in out if o.kind == kind and o.concealed is None]
+        parts.append(f"{kind}: ranked first {first}/{len(conc)}, clean "
+                     f"{sum(not o.named for o in clean)}/{len(clean)}")
+    return "; ".join(parts)
+
+
 def floors(out: list[Outcome]) -> str:
     """The issue's three floors against this batch."""
     conc = [o for o in out if o.concealed not in (None, "cogging")]
@@ -125,6 +137,7 @@ def main(argv: list[str]) -> int:
               f"ambiguous={o.ambiguous}", file=sys.stderr)
     print(table(out))
     print(f"\nfloors: {floors(out)}")
+    print(f"by input kind: {by_kind(out)}")
     print(f"law {law}; wall {time.perf_counter() - t0:.0f} s")
     return 0
 
