@@ -20,6 +20,8 @@ from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from sim.finger_dynamic import FingerDynamicModel, dynamic_data  # noqa: E402
@@ -42,6 +44,7 @@ class Outcome:
     named: tuple[tuple[str, float], ...]
     warning: bool          # unexplained-residual warning
     ambiguous: tuple[str, ...]
+    gap: float = 0.0       # the refined nominal finger's residual rms over the floor
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -55,8 +58,9 @@ def run_case(concealed: str | None, seed: int, law: str = "speed") -> Outcome:
     model = FingerDynamicModel(default_finger_params(),
                                dynamic_data(c.recording, "motor_angle_rad"), TOLERANCE)
     d = diagnose_dynamic(model)
+    gap = float(np.sqrt(d.nominal.rss / len(model.data.split()[0]))) / d.floor_rad
     return Outcome(concealed, seed, c.kind, c.value, tuple((n, v) for n, v, _ in d.chosen),
-                   d.warning is not None, tuple(d.ambiguous))
+                   d.warning is not None, tuple(d.ambiguous), gap)
 
 
 def batch(per_class: int, seed: int, law: str = "speed") -> list[Outcome]:
@@ -105,6 +109,16 @@ def by_kind(out: list[Outcome]) -> str:
     return "; ".join(parts)
 
 
+def clean_gap(out: list[Outcome]) -> str:
+    """The model gap on the clean recordings: nominal-fit residual rms / floor, per kind."""
+    parts = []
+    for kind in ("force", "position"):
+        g = sorted(o.gap for o in out if o.kind == kind and o.concealed is None)
+        if g:
+            parts.append(f"{kind} median {np.median(g):.2f} (range {g[0]:.2f}-{g[-1]:.2f})")
+    return "; ".join(parts)
+
+
 def floors(out: list[Outcome]) -> str:
     """The issue's three floors against this batch."""
     conc = [o for o in out if o.concealed not in (None, "cogging")]
@@ -134,10 +148,12 @@ def main(argv: list[str]) -> int:
     for o in out:
         print(f"{o.concealed} seed {o.seed} ({o.kind}, value {o.value:.4g}): "
               f"{[(n, round(v, 4)) for n, v in o.named]} warning={o.warning} "
-              f"ambiguous={o.ambiguous}", file=sys.stderr)
+              f"gap={o.gap:.2f} ambiguous={o.ambiguous}", file=sys.stderr)
     print(table(out))
     print(f"\nfloors: {floors(out)}")
     print(f"by input kind: {by_kind(out)}")
+    print(f"clean recordings, nominal-fit residual rms / floor (the search starts above 2): "
+          f"{clean_gap(out)}")
     print(f"law {law}; wall {time.perf_counter() - t0:.0f} s")
     return 0
 
