@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import optimize
 
 Array = NDArray[np.float64]
 
@@ -41,12 +42,18 @@ TABLE_4_1 = ((50.0, 0.06733), (100.0, 0.1781), (200.0, 0.4240))
 TABLE_4_2_LIFTED = ((15.7, 2.407), (9.8, 0.767))
 
 
-def _power_law(coulomb_units: float) -> tuple[float, float]:
-    """(A, p) of ``u - u_c = A w^p`` through Table 4.1 (least squares in log-log)."""
-    x = np.log([w for _, w in TABLE_4_1])
+def _power_law(coulomb_units: float, w0_rad_s: float) -> tuple[float, float]:
+    """(A, p) of the regularised law ``u - u_c = A ((w + w0)^p - w0^p)`` through Table 4.1
+    (least squares on the log of the friction, so each point weighs the same)."""
+    w = np.array([wi for _, wi in TABLE_4_1])
     y = np.log([u - coulomb_units for u, _ in TABLE_4_1])
-    p, ln_a = np.polyfit(x, y, 1)
-    return float(math.exp(ln_a)), float(p)
+
+    def resid(x: Array) -> Array:
+        return x[0] + np.log((w + w0_rad_s) ** x[1] - w0_rad_s ** x[1]) - y
+
+    p0, ln_a0 = np.polyfit(np.log(w), y, 1)
+    fit = optimize.least_squares(resid, [ln_a0, p0], bounds=([-np.inf, 0.1], [np.inf, 2.0]))
+    return float(math.exp(fit.x[0])), float(fit.x[1])
 
 
 def _base_spring(r_base_m: float) -> tuple[float, float]:
@@ -59,7 +66,8 @@ def _base_spring(r_base_m: float) -> tuple[float, float]:
 R_MOTOR_M = 0.01222
 R_BASE_M = 1.42 * R_MOTOR_M
 _K_BASE, _PRELOAD = _base_spring(R_BASE_M)
-_A, _P = _power_law(5.0)
+FRICTION_W0_RAD_S = 0.01
+_A, _P = _power_law(5.0, FRICTION_W0_RAD_S)
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,7 +92,7 @@ class FingerTruth:
     tendon_slack_m: float = 0.0005
     friction_a_units: float = _A          # speed friction u = A |w|^p (w in rad/s)
     friction_p: float = _P
-    friction_w0_rad_s: float = 0.01       # regularises the power law's infinite slope at 0
+    friction_w0_rad_s: float = FRICTION_W0_RAD_S  # regularises the power law's infinite slope at 0
     coulomb_w_rad_s: float = 0.005        # tanh width of the Coulomb sign
     friction_law: str = "speed"           # "effort": Table 4.1 read as a viscous coefficient
     #                                       that depends on the effort (only to measure how

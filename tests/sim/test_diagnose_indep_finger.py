@@ -72,3 +72,28 @@ def test_clean_and_strong_effects_on_independent_recordings() -> None:
         assert not o.warning, o
     assert offset.named[0][1] == pytest.approx(offset.value, abs=0.01)
     assert gain.named[0][1] == pytest.approx(gain.value, rel=0.15)
+
+
+@pytest.mark.parametrize(("units", "speed_rad_s"), [(50.0, 0.06733), (100.0, 0.1781),
+                                                    (200.0, 0.4240)])
+def test_unloaded_string_reproduces_table_4_1(units: float, speed_rad_s: float) -> None:
+    """The motor pulling a string not tied to the finger reaches Table 4.1's terminal speed
+    (the friction law's fit, checked through the integrated dynamics)."""
+    p = replace(FingerTruth(), tendon_slack_m=10.0)
+    tr = simulate(lambda t: Command("force", units=units), 2.0, 100.0, p, Effects())
+    assert tr.tendon_n.max() == 0.0
+    assert tr.motor_vel_rad_s[-1] == pytest.approx(speed_rad_s, rel=0.04)
+
+
+def test_backlash_shifts_the_settled_shaft_by_half_the_play() -> None:
+    """From the centred start the shaft turns half the play before the spool takes the
+    tendon; once taut the spool stays at the trailing end, so the settled shaft is width/2
+    further than without backlash (same finger, same tension)."""
+    p = replace(FingerTruth(), motor_coulomb_units=0.0, friction_a_units=5.0)
+
+    def settled(width: float) -> float:
+        tr = simulate(lambda t: Command("force", units=60.0), 15.0, 50.0, p,
+                      Effects(backlash_rad=width))
+        return float(tr.motor_rad[-1])
+
+    assert settled(0.04) - settled(0.0) == pytest.approx(0.02, abs=1e-4)
