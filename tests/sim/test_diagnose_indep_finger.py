@@ -5,7 +5,8 @@ against a hand-derived static equilibrium.
 
 The outcome cases are the first clean, sensor_offset and actuator_gain cases of the batch in
 docs/diagnose-results.md ("Independent-generator finger batch", seeds 700/704/706: force
-protocol); the full confusion matrix is ``tests/sim/indep_finger_confusion.py``.
+protocol) and its first actuator_gain case on the position protocol (717); the full confusion
+matrix is ``tests/sim/indep_finger_confusion.py``.
 """
 
 from __future__ import annotations
@@ -72,6 +73,16 @@ def test_clean_and_strong_effects_on_independent_recordings() -> None:
         assert not o.warning, o
     assert offset.named[0][1] == pytest.approx(offset.value, abs=0.01)
     assert gain.named[0][1] == pytest.approx(gain.value, rel=0.15)
+
+
+def test_strong_gain_on_an_independent_position_recording() -> None:
+    """The position protocol (the servo's closed loop): the batch's first actuator_gain case
+    there (seed 717).  Only the first name is checked: on position recordings the model gap
+    makes a second, catch-all effect likely (docs/diagnose-results.md)."""
+    o = run_case("actuator_gain", 717)
+    assert o.kind == "position"
+    assert o.names and o.names[0] == "actuator_gain", o
+    assert o.named[0][1] == pytest.approx(o.value, rel=0.15)
 
 
 @pytest.mark.parametrize(("units", "speed_rad_s"), [(50.0, 0.06733), (100.0, 0.1781),
