@@ -66,7 +66,7 @@ class DynamicDiagnosis:
 
     nominal: Any                                   # the model's fit objects
     final: Any
-    chosen: tuple[tuple[str, float, float], ...]   # (effect, value, relative rss reduction)
+    chosen: tuple[tuple[str, float, float], ...]   # (effect, final value, step rss reduction)
     ranking: tuple[tuple[str, float], ...]         # (effect, relative rss reduction), best first
     floor_rad: float                               # noise + physics-step error (rms)
     y_meas: Array
@@ -187,8 +187,10 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 2, max_effects: in
                          engine.Rule(criterion=criterion))
     chosen = []
     prev = nominal
+    final = dict(sel.final.effects)  # every value as it stands in the final (joint) model
     for st in sel.steps:
-        chosen.append((st.name, st.fit.effects[-1][1], 1.0 - st.fit.rss / prev.rss))
+        chosen.append((st.name, final.get(st.name, st.fit.effects[-1][1]),
+                       1.0 - st.fit.rss / prev.rss))
         prev = st.fit
     warn = unexplained(_rms(sel.final.rss, len(tr)), floor)
     return DynamicDiagnosis(nominal, sel.final, tuple(chosen), tuple(path.screened), floor, ym,

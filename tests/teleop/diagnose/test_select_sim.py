@@ -119,3 +119,19 @@ def test_the_loop_names_nothing_on_a_clean_recording() -> None:
     # with the floor understated the loop tries the candidates: the shared rule refuses them
     d = diagnose_dynamic(LagModel(_data(0.0, 2), floor_rad=NOISE / 3))
     assert d.chosen == () and d.rejected
+
+
+def test_every_chosen_value_is_the_final_joint_models() -> None:
+    """Two effects: the first one's value is reported as it stands in the final (joint) model
+    (what ``--write-params`` writes and the after-fit uses), not as the first step fitted it
+    without the second (the axis path's contract, ``select.select_oe``)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(400) * 0.01
+    u = np.repeat(rng.uniform(0, 1, 20), 20)   # one-signed: the step-1 gain absorbs the offset
+    d = diagnose_dynamic(LagModel(Data(t, u, lag(t, u, 0.21, 0.05, 1.5)
+                                       + rng.normal(0, NOISE, len(t)))))
+    final = dict(d.final.effects)
+    assert sorted(n for n, _, _ in d.chosen) == ["actuator_gain", "sensor_offset"]
+    for name, value, _ in d.chosen:
+        assert value == final[name], (name, value, final[name])
+    assert abs(final["actuator_gain"] - 1.5) < 0.05 and abs(final["sensor_offset"] - 0.05) < 0.01
