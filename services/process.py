@@ -85,10 +85,15 @@ def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any,
     return HandService(cfg, bus, backend, clock=None if clock is None else clock.now_s)
 
 
-def _hand_meta(role: str, cfg: TeleopConfig) -> tuple[tuple[str, str], ...]:
-    """What a hand recording must say about its driver for ``teleop diagnose --model finger``
-    to rebuild the motor commands: the backend and, for the dynamixel driver, its moving speed
+def _role_meta(role: str, cfg: TeleopConfig) -> tuple[tuple[str, str], ...]:
+    """What a recording must say for the tools that read it: the master's grasp threshold
+    (``teleop grasps DIR``); the hand's driver, for ``teleop diagnose --model finger`` to
+    rebuild the motor commands: the backend and, for the dynamixel driver, its moving speed
     and overload back-off (the targets it writes differ from the set-points while overloaded)."""
+    if role == "master":  # where a grasp starts, for ``teleop grasps DIR``
+        from teleop.analysis.grasps import grasp_threshold_m
+
+        return (("grasp_threshold_m", f"{grasp_threshold_m(cfg):.6g}"),)
     if role != "hand":
         return ()
     out: tuple[tuple[str, str], ...] = (("hand_backend", cfg.hand.backend),)
@@ -203,7 +208,7 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         importlib.import_module(f"services.{role}_service")  # the shell's imports, now
         record = Path(opts.record_dir) / f"{role}.csv" if opts.record_dir else None
         meta = (("role", role), ("controller", cfg.controller.kind),
-                ("session", cfg.session.name), ("rate_hz", f"{rate:g}"), *_hand_meta(role, cfg))
+                ("session", cfg.session.name), ("rate_hz", f"{rate:g}"), *_role_meta(role, cfg))
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
                               cfg.dashboard.rate_hz, meta)
         bus = ZenohBus.from_config(role, cfg, clock=clock, announce=False)

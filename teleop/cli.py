@@ -27,7 +27,7 @@ from teleop.errors import DeviceError, UserInputError
 #: Subcommand modules, in the order ``teleop --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "up", "run", "sim", "sweep", "diagnose", "servo_emulator", "hand_emulator", "bench", "certs",
-    "config", "faults", "budget", "watch",
+    "config", "faults", "budget", "grasps", "watch",
 )
 
 

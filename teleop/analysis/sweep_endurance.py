@@ -21,7 +21,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from teleop.analysis.grasps import GraspSeries, analyse_grasps, format_grasps
+from teleop.analysis.grasps import (
+    GraspSeries,
+    curl_grasps,
+    format_grasps,
+    grasp_threshold_m,
+)
 from teleop.analysis.stability import RunSignals, StabilityCriteria, classify_run
 from teleop.analysis.sweep import (
     ProgressFn,
@@ -44,23 +49,12 @@ ENDURANCE_DELAYS_S: tuple[float, ...] = (0.0, 0.2, 1.0)
 ENDURANCE_LOSS = 0.2
 
 
-def grasp_threshold_m(cfg: TeleopConfig) -> float:
-    """Trigger closing that marks a grasp: a tenth of what the operator's script closes to
-    (in contact the displayed force holds the trigger far short of the script's aim)."""
-    return 0.1 * cfg.master.virtual.closed_fraction * cfg.master.travel_m
-
-
 def grasps_from_columns(t_s: Array, trigger_m: Array, pressure: Array, proximal_rad: Array,
                         distal_rad: Array, displayed_force_n: Array,
                         cfg: TeleopConfig) -> GraspSeries:
-    """:func:`analyse_grasps` with the configuration's grasp threshold; a finger's closure is
-    its curl, proximal + distal ((n, fingers) each): how far the tendon closed it.  The
-    proximal angle alone is how an underactuated finger shares that curl between its links,
-    which differs between grasps of equal force (the hard operator on the block: 0.078-0.091
-    rad at 4,992-4,995 each) and overshoots for a sample at an impact."""
-    curl = np.asarray(proximal_rad, float) + np.asarray(distal_rad, float)
-    return analyse_grasps(t_s, trigger_m, pressure, curl, displayed_force_n,
-                          grasp_threshold_m(cfg))
+    """:func:`curl_grasps` with the configuration's grasp threshold."""
+    return curl_grasps(t_s, trigger_m, pressure, proximal_rad, distal_rad, displayed_force_n,
+                       grasp_threshold_m(cfg))
 
 
 def _endurance_one(runner: EnduranceRunner, cfg: TeleopConfig, point: SweepPoint,

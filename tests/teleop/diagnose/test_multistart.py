@@ -49,13 +49,14 @@ def test_a_fit_stuck_with_the_alignment_at_its_bound_is_restarted(
     fit started there stopped at 3x the residual of one started at the centre (score 6052
     instead of 7088) and ``gravity`` 1.05 made up the difference (score 1185, a false
     discovery).  With the restarts: ``coulomb_friction`` alone.  The mutant (one start only,
-    ``mutant=True``) names gravity beside it again: this case exercises the restarts."""
+    ``mutant=True``) names a second effect beside it again (gravity, or stiction): this case exercises the restarts."""
     if mutant:
         for mod in (select, diagnose_mod):
             monkeypatch.setattr(mod, "restarts", lambda start, nominal=None: [start])
     named = _named(178)
-    if mutant:
-        assert "gravity" in named, named
+    if mutant:  # a false discovery beside it again: gravity where it was recorded, stiction
+        # on the machine of 2026-11-26 (the optimiser's last digits choose which, not whether)
+        assert named[0] == "coulomb_friction" and len(named) > 1, named
     else:
         assert named == ["coulomb_friction"], named
 

@@ -1,0 +1,220 @@
+"""A ``teleop up --record DIR`` run judged afterwards: does the loop keep working?
+
+Three questions, answered from the three services' recordings (``master.csv``, ``hand.csv``,
+``controller.csv``; the hand and controller sampled and held on the master's clock, all three
+share the launcher's epoch):
+
+* every grasp against the first (:func:`teleop.analysis.sweep_endurance.grasps_from_columns`:
+  peak pressure, the fingers' curl held 0.1 s, felt force);
+* whether an energy store sat empty while the operator asked for motion: the master's and the
+  hand's tanks and the controller's store below ``floor_j`` while the trigger is closed past
+  the grasp threshold (a closed trigger with an empty tank is a hand that ignores it);
+* which safety guards fired (watchdogs, servo-fault safe state, contact guards), for how long.
+
+Times are on the recordings' own clock (the launcher's epoch: the services start a few
+seconds after it).
+
+Example::
+
+    report = judge_recorded_run(read_run_dir("runs/a"), threshold_m=0.0015)
+    print(format_recorded_run(report))
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from teleop.analysis.grasps import GraspSeries, curl_grasps
+from teleop.errors import RecordingError
+from teleop.recording import Recording, read_recording
+
+Array = NDArray[np.float64]
+
+__all__ = ["RunRecordings", "EmptySpells", "GuardTime", "RecordedRunReport", "read_run_dir",
+           "judge_recorded_run", "format_recorded_run", "EMPTY_FLOOR_J"]
+
+#: an energy store below this is empty (a tank's content is joules; one grasp moves ~0.05 J)
+EMPTY_FLOOR_J = 0.005
+
+_ROLES = ("master", "hand", "controller")
+#: (role, column, what it means): 0/1 flags, time spent at 1 is reported
+_FLAGS = (("master", "watchdog", "master force-command watchdog"),
+          ("controller", "watchdog", "controller hand-state watchdog"),
+          ("hand", "watchdog", "hand command watchdog"),
+          ("hand", "servo_safe", "hand held safe on servo error bits"))
+#: (role, column, what it means): counts of fingers flagged per tick, time with any reported
+_FINGER_FLAGS = (("hand", "yielding", "a finger's contact yielding"),
+                 ("hand", "unseen_contact", "a finger stalled on a contact its cells miss"),
+                 ("hand", "cells_low", "a finger's cells reading below its servo's load"))
+
+
+@dataclass(frozen=True, slots=True)
+class RunRecordings:
+    """The recordings of one run (``controller`` may be missing: it is then not judged)."""
+
+    master: Recording
+    hand: Recording
+    controller: Recording | None
+    source: str
+
+
+@dataclass(frozen=True, slots=True)
+class EmptySpells:
+    """When one energy store sat below the floor while the trigger was closed."""
+
+    store: str  # "master tank", "hand tank", "controller store"
+    closed_s: float  # time the trigger was closed past the grasp threshold
+    empty_s: float  # of it, time this store was below the floor
+    spells: int  # separate stretches
+    longest_s: float
+    longest_at_s: float  # start of the longest (nan: none)
+    min_j: float  # the store's lowest value while the trigger was closed
+
+    @property
+    def empty_fraction(self) -> float:
+        return self.empty_s / self.closed_s if self.closed_s > 0 else math.nan
+
+
+@dataclass(frozen=True, slots=True)
+class GuardTime:
+    """How long one guard was active in the run."""
+
+    what: str
+    active_s: float
+    first_at_s: float  # nan: never
+
+
+@dataclass(frozen=True, slots=True)
+class RecordedRunReport:
+    source: str
+    duration_s: float
+    threshold_m: float
+    floor_j: float
+    grasps: GraspSeries
+    empty: tuple[EmptySpells, ...]
+    guards: tuple[GuardTime, ...]
+
+    def as_dict(self) -> dict[str, object]:
+        g = self.grasps
+        return {"source": self.source, "duration_s": self.duration_s,
+                "grasp_threshold_m": self.threshold_m, "empty_floor_j": self.floor_j,
+                "grasp_count": len(g.grasps), "min_pressure_ratio": g.min_pressure_ratio,
+                "min_closure_ratio": g.min_closure_ratio, "min_felt_ratio": g.min_felt_ratio,
+                "grasps": g.rows(),
+                "empty": [{"store": e.store, "closed_s": e.closed_s, "empty_s": e.empty_s,
+                           "empty_fraction": e.empty_fraction, "spells": e.spells,
+                           "longest_s": e.longest_s, "longest_at_s": e.longest_at_s,
+                           "min_j": e.min_j} for e in self.empty],
+                "guards": [{"what": x.what, "active_s": x.active_s, "first_at_s": x.first_at_s}
+                           for x in self.guards]}
+
+
+def read_run_dir(path: str | Path) -> RunRecordings:
+    """The recordings ``teleop up --record DIR`` wrote (master and hand required)."""
+    d = Path(path)
+    if not d.is_dir():
+        raise RecordingError(f"{d}: no such directory (give the DIR of teleop up --record DIR)")
+    recs: dict[str, Recording | None] = {}
+    for role in _ROLES:
+        f = d / f"{role}.csv"
+        if not f.exists():
+            if role == "controller":
+                recs[role] = None
+                continue
+            raise RecordingError(f"{f}: missing (teleop up --record writes master.csv, "
+                                 "hand.csv and controller.csv)")
+        rec = read_recording(f)
+        if len(rec.t_s) < 2:
+            raise RecordingError(f"{f}: fewer than two samples")
+        recs[role] = rec
+    master, hand = recs["master"], recs["hand"]
+    assert master is not None and hand is not None
+    return RunRecordings(master, hand, recs["controller"], str(d))
+
+
+def _held(src: Recording, t: Array, name: str) -> Array:
+    """Column ``name`` of ``src`` sampled and held at ``t`` (NaN before its first sample)."""
+    idx = np.searchsorted(src.t_s, t, side="right") - 1
+    out = src.column(name)[np.clip(idx, 0, len(src.t_s) - 1)].astype(float)
+    out[idx < 0] = np.nan
+    return out
+
+
+def _spans(t: Array, on: NDArray[np.bool_]) -> list[tuple[float, float]]:
+    """(start, duration) of every stretch where ``on`` holds (a sample lasts to the next)."""
+    dt = np.diff(t, append=t[-1])
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
+    return [(float(t[a]), float(dt[a:b].sum())) for a, b in zip(edges[::2], edges[1::2],
+                                                                 strict=True)]
+
+
+def _empty(store: str, t: Array, level_j: Array, closed: NDArray[np.bool_],
+           floor_j: float) -> EmptySpells:
+    dt = np.diff(t, append=t[-1])
+    seen = closed & np.isfinite(level_j)
+    empty = seen & (level_j < floor_j)
+    spans = _spans(t, empty)
+    longest = max(spans, key=lambda s: s[1], default=(math.nan, 0.0))
+    return EmptySpells(store, float(dt[seen].sum()), float(dt[empty].sum()), len(spans),
+                       longest[1], longest[0],
+                       float(level_j[seen].min()) if seen.any() else math.nan)
+
+
+def judge_recorded_run(run: RunRecordings, threshold_m: float,
+                       floor_j: float = EMPTY_FLOOR_J) -> RecordedRunReport:
+    """Every grasp against the first, the stores' empty spells and the guards of one run."""
+    m, h, c = run.master, run.hand, run.controller
+    t = m.t_s
+    pressure = np.column_stack([_held(h, t, f"pressure_f{i // 9 + 1}_{i % 9}")
+                                for i in range(27)])
+    prox = np.column_stack([_held(h, t, f"proximal_angle_rad_f{i}") for i in (1, 2, 3)])
+    dist = np.column_stack([_held(h, t, f"distal_angle_rad_f{i}") for i in (1, 2, 3)])
+    trigger = m.column("trigger_position_m")
+    grasps = curl_grasps(t, trigger, pressure, prox, dist, m.column("displayed_force_n"),
+                         threshold_m)
+    closed = np.nan_to_num(trigger, nan=0.0) > threshold_m
+    stores = [("master tank", m.column("tank_j")), ("hand tank", _held(h, t, "tank_j"))]
+    if c is not None:
+        stores.append(("controller store", _held(c, t, "store_j")))
+    empty = tuple(_empty(name, t, level, closed, floor_j) for name, level in stores)
+    recs = {"master": m, "hand": h, "controller": c}
+    guards = []
+    for role, col, what in _FLAGS + _FINGER_FLAGS:
+        rec = recs[role]
+        if rec is None or not rec.has(col):
+            continue
+        spans = _spans(rec.t_s, np.nan_to_num(rec.column(col)) > 0.5)
+        guards.append(GuardTime(what, sum(s[1] for s in spans),
+                                spans[0][0] if spans else math.nan))
+    return RecordedRunReport(run.source, float(t[-1] - t[0]), threshold_m, floor_j, grasps,
+                             empty, tuple(guards))
+
+
+def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
+    """The per-grasp table, then the stores and the guards, one line each."""
+    from teleop.analysis.grasps import format_grasps
+
+    g = r.grasps
+    lines = [f"{r.source}: {r.duration_s:.0f} s, {len(g.grasps)} complete grasps "
+             f"(trigger past {r.threshold_m * 1000:.2f} mm)"]
+    if g.grasps:
+        lines.append(f"weakest over first: peak pressure {g.min_pressure_ratio:.2f}, closure "
+                     f"{g.min_closure_ratio:.2f}, felt force {g.min_felt_ratio:.2f}")
+        lines.append(format_grasps(g, every))
+    lines.append(f"energy stores while the trigger is closed (empty: below "
+                 f"{r.floor_j * 1000:g} mJ):")
+    for e in r.empty:
+        where = (f", longest {e.longest_s:.2f} s at {e.longest_at_s:.1f} s" if e.spells else "")
+        lines.append(f"  {e.store:17s} lowest {e.min_j:.3f} J; empty {e.empty_s:.2f} s of "
+                     f"{e.closed_s:.0f} s ({100 * e.empty_fraction:.2f} %) in {e.spells} "
+                     f"spells{where}")
+    lines.append("guards:")
+    for x in r.guards:
+        when = f" (first at {x.first_at_s:.1f} s)" if x.active_s > 0 else ""
+        lines.append(f"  {x.what:48s} {x.active_s:7.2f} s{when}")
+    return "\n".join(lines)

@@ -1,0 +1,136 @@
+"""``teleop grasps DIR``: a recorded run judged grasp by grasp, on recordings built here with
+known answers (a weak third grasp, an empty master tank while squeezing and another while the
+trigger is open, a watchdog trip); the live run is judged in tests/test_sweep_live_grasps.py."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from teleop.analysis.recorded_run import judge_recorded_run, read_run_dir
+from teleop.cli import main
+from teleop.recording import Recording, write_recording
+
+THRESHOLD_M = 0.0025
+#: grasp k: trigger closed over [5k + 1, 5k + 3) s; the hand's peak pressure then
+PEAKS = (600.0, 610.0, 300.0, 605.0)
+
+
+def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = None,
+               drop: str | None = None) -> None:
+    t = np.arange(0.0, 20.0, 0.01) + 3.0  # services start after the launcher's epoch
+    phase = (t - 3.0) % 5.0
+    closed = (phase >= 1.0) & (phase < 3.0)
+    k = ((t - 3.0) // 5.0).astype(int)
+    tank = np.ones_like(t)
+    tank[(t >= 14.0) & (t < 14.5)] = 0.0  # grasp 2, trigger closed: counts
+    tank[(t >= 17.0) & (t < 17.5)] = 0.0  # trigger open: does not count
+    master = {"t_s": t, "trigger_position_m": np.where(closed, 0.012, 0.0),
+              "displayed_force_n": np.where(closed, 8.0, 0.0), "tank_j": tank,
+              "watchdog": np.zeros_like(t)}
+    if drop:
+        master.pop(drop)
+    meta = (("role", "master"), ("grasp_threshold_m", f"{THRESHOLD_M:g}")) \
+        if master_meta is None else master_meta
+    write_recording(d / "master.csv", Recording.from_columns(master, meta))
+
+    th = np.arange(0.0, 20.0, 0.025) + 3.0
+    ph = (th - 3.0) % 5.0
+    kh = ((th - 3.0) // 5.0).astype(int)
+    holding = (ph >= 1.5) & (ph < 3.0)
+    hand: dict[str, np.ndarray] = {"t_s": th}
+    for i in range(27):
+        hand[f"pressure_f{i // 9 + 1}_{i % 9}"] = np.where(
+            holding & (i == 4), np.array(PEAKS)[np.clip(kh, 0, 3)], 0.0)
+    for f in (1, 2, 3):
+        hand[f"proximal_angle_rad_f{f}"] = np.where(holding, 0.5, 0.0)
+        hand[f"distal_angle_rad_f{f}"] = np.where(holding, 0.4, 0.0)
+    hand["tank_j"] = np.full_like(th, 9.0)
+    hand["watchdog"] = ((th >= 8.0) & (th < 8.2)).astype(float)
+    write_recording(d / "hand.csv", Recording.from_columns(hand, (("role", "hand"),)))
+    del k
+
+
+@pytest.fixture()
+def run_dir(tmp_path: Path) -> Path:
+    _write_run(tmp_path)
+    return tmp_path
+
+
+def test_every_grasp_against_the_first(run_dir: Path) -> None:
+    r = judge_recorded_run(read_run_dir(run_dir), THRESHOLD_M)
+    assert len(r.grasps.grasps) == 4
+    ratios = [g.pressure_ratio for g in r.grasps.grasps]
+    np.testing.assert_allclose(ratios, np.array(PEAKS) / PEAKS[0])
+    assert r.grasps.min_pressure_ratio == pytest.approx(0.5)
+    assert r.grasps.min_closure_ratio == pytest.approx(1.0)  # curl 0.9 rad each time
+
+
+def test_an_empty_tank_counts_only_while_the_trigger_is_closed(run_dir: Path) -> None:
+    r = judge_recorded_run(read_run_dir(run_dir), THRESHOLD_M)
+    master = next(e for e in r.empty if e.store == "master tank")
+    assert master.spells == 1
+    assert master.empty_s == pytest.approx(0.5, abs=0.011)  # not the 0.5 s while open
+    assert master.longest_at_s == pytest.approx(14.0, abs=0.011)
+    assert master.closed_s == pytest.approx(8.0, abs=0.05)  # four 2 s squeezes
+    assert master.min_j == 0.0
+    hand = next(e for e in r.empty if e.store == "hand tank")
+    assert hand.spells == 0 and hand.min_j == 9.0
+    assert [e.store for e in r.empty] == ["master tank", "hand tank"]  # no controller.csv
+
+
+def test_guard_time_is_measured(run_dir: Path) -> None:
+    r = judge_recorded_run(read_run_dir(run_dir), THRESHOLD_M)
+    g = {x.what: x for x in r.guards}
+    assert g["hand command watchdog"].active_s == pytest.approx(0.2, abs=0.03)
+    assert g["hand command watchdog"].first_at_s == pytest.approx(8.0)
+    assert g["master force-command watchdog"].active_s == 0.0
+
+
+def test_cli_floor_and_json(run_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["grasps", str(run_dir)]) == 0
+    out = capsys.readouterr().out
+    assert "4 complete grasps" in out and "0.50" in out
+    assert main(["grasps", str(run_dir), "--floor", "0.9"]) == 1  # the weak third grasp
+    assert "FAIL: 1 grasps below 0.9" in capsys.readouterr().out
+    assert main(["grasps", str(run_dir), "--floor", "0.4"]) == 0
+    assert main(["grasps", str(run_dir), "--floor", "0.4", "--max-empty-s", "0.2"]) == 1
+    capsys.readouterr()
+    assert main(["grasps", str(run_dir), "--json", "-"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["grasp_count"] == 4 and d["min_pressure_ratio"] == pytest.approx(0.5)
+    assert d["grasp_threshold_m"] == THRESHOLD_M
+
+
+def test_threshold_from_the_recording_or_the_option(run_dir: Path) -> None:
+    # a threshold above the squeeze finds no grasp at all
+    r = judge_recorded_run(read_run_dir(run_dir), 0.02)
+    assert not r.grasps.grasps
+    assert main(["grasps", str(run_dir), "--threshold-m", "0.02", "--floor", "0.9"]) == 1
+
+
+@pytest.mark.parametrize(("kwargs", "needle"), [
+    ({"drop": "trigger_position_m"}, "no column 'trigger_position_m'"),
+    ({"master_meta": (("grasp_threshold_m", "wide"),)}, "grasp_threshold_m 'wide'"),
+])
+def test_bad_recordings_are_one_line_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                            kwargs: dict[str, object], needle: str) -> None:
+    _write_run(tmp_path, **kwargs)  # type: ignore[arg-type]
+    assert main(["grasps", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and "master.csv" in err and len(err.splitlines()) == 1
+
+
+def test_missing_files_are_one_line_exit_2(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["grasps", str(tmp_path / "nowhere")]) == 2
+    assert "no such directory" in capsys.readouterr().err
+    _write_run(tmp_path)
+    (tmp_path / "hand.csv").unlink()
+    assert main(["grasps", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "hand.csv: missing" in err and len(err.strip().splitlines()) == 1
+    assert main(["grasps", str(tmp_path), "--every", "0"]) == 2
