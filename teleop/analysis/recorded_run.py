@@ -4,7 +4,7 @@ Three questions, answered from the three services' recordings (``master.csv``, `
 ``controller.csv``; the hand and controller sampled and held on the master's clock, all three
 share the launcher's epoch):
 
-* every grasp against the first (:func:`teleop.analysis.sweep_endurance.grasps_from_columns`:
+* every grasp against the first (:func:`teleop.analysis.grasps.curl_grasps`:
   peak pressure, the fingers' curl held 0.1 s, felt force);
 * whether an energy store sat empty while the operator asked for motion: the master's and the
   hand's tanks and the controller's store below ``floor_j`` while the trigger is closed past
@@ -16,7 +16,7 @@ seconds after it).
 
 Example::
 
-    report = judge_recorded_run(read_run_dir("runs/a"), threshold_m=0.0015)
+    report = judge_recorded_run(read_run_dir("runs/a"), threshold_m=0.0025)
     print(format_recorded_run(report))
 """
 
@@ -38,7 +38,7 @@ Array = NDArray[np.float64]
 __all__ = ["RunRecordings", "EmptySpells", "GuardTime", "RecordedRunReport", "read_run_dir",
            "judge_recorded_run", "format_recorded_run", "EMPTY_FLOOR_J"]
 
-#: an energy store below this is empty (a tank's content is joules; one grasp moves ~0.05 J)
+#: an energy store below this is empty (J)
 EMPTY_FLOOR_J = 0.005
 
 _ROLES = ("master", "hand", "controller")
@@ -86,6 +86,7 @@ class GuardTime:
 
     what: str
     active_s: float
+    spells: int  # separate stretches
     first_at_s: float  # nan: never
 
 
@@ -110,7 +111,8 @@ class RecordedRunReport:
                            "empty_fraction": e.empty_fraction, "spells": e.spells,
                            "longest_s": e.longest_s, "longest_at_s": e.longest_at_s,
                            "min_j": e.min_j} for e in self.empty],
-                "guards": [{"what": x.what, "active_s": x.active_s, "first_at_s": x.first_at_s}
+                "guards": [{"what": x.what, "active_s": x.active_s, "spells": x.spells,
+                            "first_at_s": x.first_at_s}
                            for x in self.guards]}
 
 
@@ -189,7 +191,7 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
         if rec is None or not rec.has(col):
             continue
         spans = _spans(rec.t_s, np.nan_to_num(rec.column(col)) > 0.5)
-        guards.append(GuardTime(what, sum(s[1] for s in spans),
+        guards.append(GuardTime(what, sum(s[1] for s in spans), len(spans),
                                 spans[0][0] if spans else math.nan))
     return RecordedRunReport(run.source, float(t[-1] - t[0]), threshold_m, floor_j, grasps,
                              empty, tuple(guards))
@@ -215,6 +217,7 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
                      f"spells{where}")
     lines.append("guards:")
     for x in r.guards:
-        when = f" (first at {x.first_at_s:.1f} s)" if x.active_s > 0 else ""
+        when = (f" in {x.spells} spells, the first at {x.first_at_s:.1f} s"
+                if x.spells else "")
         lines.append(f"  {x.what:48s} {x.active_s:7.2f} s{when}")
     return "\n".join(lines)

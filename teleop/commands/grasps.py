@@ -9,6 +9,10 @@ closed, and how long each safety guard was active.  Examples::
     teleop grasps runs/a
     teleop grasps runs/a --every 10 --json runs/a/grasps.json --floor 0.9
 
+The three recordings are read on one clock, as ``teleop up`` writes them; recordings of
+services on separate machines (``zenoh.shared_clock=false``) each count from their own start
+and are not aligned here.
+
 With ``--floor R`` the exit status is 1 when a grasp falls below R of the first by pressure,
 closure or felt force, or a store sat empty for longer than ``--max-empty-s`` at a stretch.
 """

@@ -29,14 +29,16 @@ and the lever arms' model error).  A window whose *lower* bound exceeds ``m tau_
 the cells read lower than their margin allows; ``LOW_WINDOWS`` such windows in a row flag the
 finger (an alarm, latched: a gain error is the sensor's, not the contact's).
 
-*Safe accounting once flagged.*  The finger's cells are scaled up by ``s``, the largest ratio
-of the upper bound to ``tau_cells`` over its held windows since the flag: every joule the cells
-report it put into the object is charged ``s`` times (what they report it got back is credited
-as read, the conservative side), and the work it did before the flag is charged again at
-``s - 1`` (every raise of ``s`` re-charges the finger's estimated work so far by the rise,
-through the margin like the work itself).  The tank then pays ``m s g`` of the work, more than
-all of it when ``s >= 1 / g``, which the window's upper bound gives for a gain error common to
-the finger's cells: its moment and its work are estimated from the same forces and lever arms.
+*Safe accounting once flagged.* The finger's cells are scaled up by ``s``, the largest ratio of
+the upper bound to ``tau_cells`` over its held windows since the flag (windows whose lower
+bound is at least ``tol``: with a smaller one the ratio measures the tolerance, not a gain):
+every joule the cells report it put into the object is charged ``s`` times (what they report it
+got back is credited as read, the conservative side), and the work it did before the flag is
+charged again at ``s - 1`` (every raise of ``s`` re-charges the finger's estimated work so far
+by the rise, through the margin like the work itself). The tank then pays ``m s g`` of the
+work, more than all of it when ``s >= 1 / g``, which the window's upper bound gives for a gain
+error common to the finger's cells: its moment and its work are estimated from the same forces
+and lever arms.
 Chosen over charging ``tau_max`` per radian (the yield guard's answer)
 because a miscalibrated sensor stays miscalibrated: the hand keeps working, every grasp paid
 at the measured ratio, where ``tau_max`` would empty the 20 J tank in a few grasps.
@@ -143,7 +145,11 @@ def step_gain(prev: GainTrack, f: FingerState, cells_nm: float, into_j: float, d
     upper = tau_s + c_v * max(-v, 0.0) + tol
     low = prev.low_windows + 1 if reads_low(lower, tau_c, model.force_margin) else 0
     scale = prev.scale
-    if scale > 1.0 or low >= LOW_WINDOWS:
+    # only a window whose servo moment is resolved (its lower bound at least the tolerance,
+    # so ``upper`` is within 3x of it) raises the scale: otherwise ``upper / tau_c`` measures
+    # the tolerance, not a gain (a flagged finger opening, servo and cells at 0.02 N m, read
+    # as 8x and more, and every raise re-charges all its work so far: -404 J on a live run)
+    if (scale > 1.0 or low >= LOW_WINDOWS) and lower >= tol:
         scale = max(scale, upper / tau_c)
     recharge = (scale - prev.scale) * prev.into_j
     nxt = GainTrack(motor, proximal, 0.0, 1, servo, cells_nm, low, scale, into)

@@ -87,6 +87,7 @@ def test_guard_time_is_measured(run_dir: Path) -> None:
     g = {x.what: x for x in r.guards}
     assert g["hand command watchdog"].active_s == pytest.approx(0.2, abs=0.03)
     assert g["hand command watchdog"].first_at_s == pytest.approx(8.0)
+    assert g["hand command watchdog"].spells == 1
     assert g["master force-command watchdog"].active_s == 0.0
 
 

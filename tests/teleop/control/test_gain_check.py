@@ -152,6 +152,23 @@ def test_the_flag_is_latched_when_the_contact_ends() -> None:
     assert after.low and after.scale == track[-1].scale
 
 
+def test_a_flagged_finger_opening_does_not_raise_its_scale_on_unreadable_moments() -> None:
+    """Flagged at a third, then the grasp opens: the cells read 0.02 N m, the servo the same
+    within its noise, far under the check's tolerance.  Such windows cannot measure a gain
+    and leave the scale and the tank alone; taken as ``upper / tau_cells`` they read the
+    tolerance as a gain error (8x and more) and re-charged all the finger's work at it (a live
+    run, 2026-11-26: the hand's tank from 11 J to -404 J as a flagged finger opened)."""
+    flagged, _ = hold(0.6, 1 / 3, 1.0)
+    assert flagged[-1].low and 2.0 < flagged[-1].scale < 6.0
+    after, recharge = hold(0.02, 1.0, 2.0, track=flagged[-1], into_j=0.001)
+    # (the first window still holds the grasp's own samples: a percent at most)
+    assert after[-1].scale < 1.02 * flagged[-1].scale
+    assert recharge < 0.02 * flagged[-1].into_j + 1e-12
+    # still raised by a window it can read: the same cells at a tenth of a real moment
+    again, recharge = hold(0.6, 0.1, 1.0, track=flagged[-1], into_j=0.001)
+    assert again[-1].scale > 5.0 and recharge > 0.0
+
+
 def test_a_load_scale_calibrated_high_flags_true_cells_on_the_safe_side() -> None:
     """The check's own assumption broken: the load read as 1.5x the torque it stands for.
     True cells are then flagged (a false alarm) and charged more: over-paid, not under."""
