@@ -15,6 +15,7 @@ import numpy as np
 from scipy import optimize
 
 from teleop.diagnose.select_sim import at_absent_value, diagnose_dynamic
+from tests.teleop.diagnose.test_select_sim import Data, Fit
 
 N = 400
 T = np.linspace(0.0, 8.0, N)
@@ -26,29 +27,9 @@ CANDS = {"coulomb_friction": ((0.3, 1.0, 2.0, 4.0), (0.0, 20.0)),
          "backlash": ((0.01, 0.03, 0.1), (0.0, 0.5))}
 
 
-@dataclass(frozen=True)
-class StubData:
-    y: np.ndarray
-    keep: np.ndarray
-
-    def split(self) -> tuple[np.ndarray, np.ndarray]:
-        i = np.arange(len(self.keep))
-        test = (i // 10) % 4 == 3
-        return i[~test], i[test]
-
-
-@dataclass(frozen=True)
-class StubFit:
-    theta: tuple[float, ...]
-    effects: tuple[tuple[str, float], ...]
-    rss: float
-    y: np.ndarray
-    rss_test: float
-
-
 @dataclass
 class StubModel:
-    data: StubData
+    data: Data
     dt_s: float = 1e-3
 
     def candidates(self) -> dict[str, tuple[tuple[float, ...], tuple[float, float]]]:
@@ -67,18 +48,18 @@ class StubModel:
         r = (y - self.data.y)[self.data.split()[0]]
         return float(r @ r)
 
-    def residual(self, f: StubFit) -> np.ndarray:
+    def residual(self, f: Fit) -> np.ndarray:
         return (f.y - self.data.y)[self.data.split()[0]]
 
     def finish(self, theta: tuple[float, ...], effects: tuple[tuple[str, float], ...]
-               ) -> StubFit:
+               ) -> Fit:
         y = self.run(theta, effects)
         te = self.data.split()[1]
         r = (y - self.data.y)[te]
-        return StubFit(tuple(theta), tuple(effects), self.rss(y), y, float(r @ r))
+        return Fit(tuple(theta), tuple(effects), self.rss(y), float(r @ r), y)
 
     def fit(self, theta0: tuple[float, ...], effects: tuple[tuple[str, float], ...]
-            ) -> StubFit:
+            ) -> Fit:
         names = [n for n, _ in effects]
         if names in ([], ["backlash"]):  # nothing to fit / stuck where it started
             return self.finish(theta0, effects)
@@ -92,7 +73,7 @@ class StubModel:
 
 def _model() -> StubModel:
     rng = np.random.default_rng(3)
-    return StubModel(StubData(0.3 * S_B + 1e-3 * rng.standard_normal(N), np.arange(N)))
+    return StubModel(Data(T, np.zeros(N), 0.3 * S_B + 1e-3 * rng.standard_normal(N)))
 
 
 def test_an_effect_fitted_away_by_the_joint_model_is_not_named() -> None:
