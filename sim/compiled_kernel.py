@@ -38,8 +38,9 @@ X_FLEX = 16
 MODE_POSITION, MODE_FORCE, MODE_VELOCITY = 0.0, 1.0, 2.0
 (K_L12_0, K_KSEG, K_UPN, K_RM, K_RB, K_KB, K_PRELOAD, K_CPHI, K_CSEG, K_MPHI, K_MFL, K_MM, K_KT,
  K_CT, K_SLACK, K_PROX, K_SEG, K_P1X, K_P1Y, K_P2X, K_P2Y, K_PO, K_LD, K_LO, K_HI, K_SLO, K_SHI,
- K_UMAX, K_KP, K_FC0, K_VS, K_N, K_PADSTART) = range(33)
-N_K = 33
+ K_UMAX, K_KP, K_FC0, K_VS, K_N, K_PADSTART, K_SFRAC) = range(34)
+K_SPIECES = 34  # the speed law's 3 pieces (lower speed, friction units, exponent), 9 numbers
+N_K = 43
 (E_DEAD, E_COULOMB, E_ASYM, E_STICTION, E_BACKLASH, E_SAT, E_GAIN, E_LAG, E_OFFSET, E_SERIES,
  E_NONLIN, E_GRAVITY) = range(12)
 KIND_NONE, KIND_CYLINDER, KIND_BLOCK = 0.0, 1.0, 2.0
@@ -168,6 +169,26 @@ def motor_effort(x: np.ndarray, c: np.ndarray, k: np.ndarray, e: np.ndarray,
     if e[E_LAG] > 0.0:
         u = x[X_U] + dt / (e[E_LAG] + dt) * (u - x[X_U])
     return ref, u, u_cmd
+
+
+@njit(cache=True)
+def speed_friction(v: float, k: np.ndarray) -> tuple[float, float]:
+    """``sim.params.speed_friction_at`` over the pieces in ``k``: (friction units, slope)."""
+    w = -v if v < 0.0 else v
+    w0 = k[K_SPIECES]
+    g0 = k[K_SPIECES + 1]
+    expo = k[K_SPIECES + 2]
+    if w <= w0:
+        slope = g0 / w0
+        return slope * v, slope
+    for j in range(1, 3):
+        if w < k[K_SPIECES + 3 * j]:
+            break
+        w0 = k[K_SPIECES + 3 * j]
+        g0 = k[K_SPIECES + 3 * j + 1]
+        expo = k[K_SPIECES + 3 * j + 2]
+    g = g0 * (w / w0) ** expo
+    return (g if v > 0.0 else -g), expo * g / w
 
 
 @njit(cache=True)

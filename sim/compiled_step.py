@@ -43,6 +43,7 @@ from sim.compiled_kernel import (
     K_RB,
     K_RM,
     K_SEG,
+    K_SFRAC,
     K_SHI,
     K_SLACK,
     K_SLO,
@@ -65,6 +66,7 @@ from sim.compiled_kernel import (
     motor_effort,
     motor_friction,
     pad_contact,
+    speed_friction,
 )
 
 
@@ -91,8 +93,16 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
     u0 = dsegs[piece, 1]
     d0 = dsegs[piece, 2]
     expo = dsegs[piece, 3]
-    c_m = d0 * (ua / u0) ** expo / upn * rm + fslope * rm
-    f_m = u / upn * rm - ffric * rm + fslope * rm * v_m
+    sfrac = k[K_SFRAC]
+    if sfrac == 0.0:
+        c_m = d0 * (ua / u0) ** expo / upn * rm + fslope * rm
+        f_m = u / upn * rm - ffric * rm + fslope * rm * v_m
+    else:  # blended with the speed law, linearised at v_m
+        g_v, g_slope = speed_friction(v_m, k)
+        c_m = ((1.0 - sfrac) * d0 * (ua / u0) ** expo + sfrac * g_slope) / upn * rm \
+            + fslope * rm
+        f_m = u / upn * rm - ffric * rm + fslope * rm * v_m \
+            - sfrac * (g_v - g_slope * v_m) / upn * rm
     # finger geometry (proximal frame)
     phi = x[X_PHI]
     v_phi = x[X_VPHI]

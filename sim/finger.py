@@ -52,7 +52,13 @@ from typing import Any
 from sim.contact import ContactObject, contact_object_from_config, pad_contact
 from sim.crush import pad_force
 from sim.motor import HOLD_ZERO, MotorCommand, apply_effort_effects, friction_force_n
-from sim.params import JOINT_RATIO, FingerParams, default_finger_params
+from sim.params import (
+    JOINT_RATIO,
+    FingerParams,
+    default_finger_params,
+    speed_friction_at,
+    speed_law_pieces,
+)
 from sim.readout import FingerOutputs, finger_energy_j, finger_outputs, tendon_stretch_m
 from sim.state import FingerState, initial_finger_state
 from teleop.effects import EffectSet
@@ -99,7 +105,9 @@ def _consts(p: FingerParams) -> tuple[Any, ...]:
            p.distal_length_m, p.proximal_limits_rad[0], p.proximal_limits_rad[1],
            p.flex_segment_limits_rad[0], p.flex_segment_limits_rad[1], _damping_segments(p),
            p.max_effort_units, p.kp_units_per_rad,
-           p.motor_coulomb_units / p.units_per_n, p.coulomb_velocity_rad_s)
+           p.motor_coulomb_units / p.units_per_n, p.coulomb_velocity_rad_s,
+           p.speed_law_fraction,
+           speed_law_pieces(p) if p.speed_law_fraction != 0.0 else ())
     if len(_CONSTS) > 64:
         _CONSTS.clear()
     _CONSTS[id(p)] = (p, out)
@@ -111,7 +119,7 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
     """One linearly implicit step; ``fixed_tension_n >= 0`` detaches the motor (hung weight)."""
     (l12_0, kseg, upn, rm, rb, kb, preload, c_phi, cseg, m_phi, m_fl, m_m, kt, ct, slack,
      prox_len, seg, p1x, p1y, p2x, p2y, po, ld, lo, hi, slo, shi, dsegs, umax, kp, fc0,
-     vs) = _consts(p)
+     vs, sfrac, spieces) = _consts(p)
     t = state.t_s
     # --- command path: driver delay + dead_time effect -----------------------------------
     delay = p.command_delay_s + eff.dead_time
@@ -171,8 +179,15 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
             piece = cand
             break
     _, u0, d0, expo = piece
-    c_m = d0 * (ua / u0) ** expo / upn * rm + fslope * rm
-    f_m = u / upn * rm - ffric * rm + fslope * rm * v_m
+    if sfrac == 0.0:
+        c_m = d0 * (ua / u0) ** expo / upn * rm + fslope * rm
+        f_m = u / upn * rm - ffric * rm + fslope * rm * v_m
+    else:  # blended with the speed law (sim.params.speed_friction_units), linearised at v_m
+        g_v, g_slope = speed_friction_at(v_m, spieces)
+        c_m = ((1.0 - sfrac) * d0 * (ua / u0) ** expo + sfrac * g_slope) / upn * rm \
+            + fslope * rm
+        f_m = u / upn * rm - ffric * rm + fslope * rm * v_m \
+            - sfrac * (g_v - g_slope * v_m) / upn * rm
     # --- finger geometry (proximal frame) ------------------------------------------------
     phi = state.prox_rad
     v_phi = state.prox_vel_rad_s

@@ -8,9 +8,11 @@ simulated ``motor_angle_rad`` (or ``proximal_angle_rad``) is compared with the m
 Speed: the physics runs at ``dt_s`` (default 2 ms, twice the recording's 1 ms; the difference
 it makes is measured once and counted as a model-error floor) and the fit compares every
 ``every``-th sample.  Refined nominal parameters (within +-tolerance): the motor gain
-(``units_per_n``), the motor's Coulomb friction (``motor_coulomb_units``) and the base spring
-(``k_base_nm_per_rad``).  Candidates are screened on a grid of values with the nominal parameters
-held, and only the best ``refine_top`` are fitted jointly with them.
+(``units_per_n``), the motor's Coulomb friction (``motor_coulomb_units``), the base spring
+(``k_base_nm_per_rad``) and, within [0, 1] whatever the tolerance, the share of the motor's
+viscous friction that follows the speed law rather than the effort law
+(``speed_law_fraction``, ``sim/params.py``).  Candidates are screened on a grid of values with
+the nominal parameters held, and only the best ``refine_top`` are fitted jointly with them.
 """
 
 from __future__ import annotations
@@ -39,7 +41,9 @@ from teleop.recording import Recording
 
 Array = NDArray[np.float64]
 
-PARAMS = ("units_per_n", "motor_coulomb_units", "k_base_nm_per_rad")
+PARAMS = ("units_per_n", "motor_coulomb_units", "k_base_nm_per_rad", "speed_law_fraction")
+#: refined within these bounds whatever the tolerance (the others: nominal +-tolerance)
+ABSOLUTE_BOUNDS: dict[str, tuple[float, float]] = {"speed_law_fraction": (0.0, 1.0)}
 DYNAMIC_EXPERIMENTS = ("force-step", "force-blocks", "position")
 CANDIDATES: dict[str, tuple[tuple[float, ...], tuple[float, float]]] = {
     # name: (screening grid, bounds); forces in N of tendon force, angles in rad of motor shaft
@@ -209,6 +213,23 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
     return out
 
 
+def param_bounds(nom: Array, tolerance: float) -> tuple[Array, Array]:
+    """Bounds of the refined parameters: nominal +-``tolerance`` (a hair around the nominal
+    at tolerance 0), the :data:`ABSOLUTE_BOUNDS` ones inside their own range."""
+    if tolerance <= 0:
+        lo, hi = nom - 1e-9 * np.abs(nom), nom + 1e-9 * np.abs(nom)
+    else:
+        lo, hi = nom * (1 - tolerance), nom * (1 + tolerance)
+    for i, n in enumerate(PARAMS):
+        if n in ABSOLUTE_BOUNDS:
+            a, b = ABSOLUTE_BOUNDS[n]
+            if tolerance > 0:
+                lo[i], hi[i] = a, b
+            else:  # held: a hair inside its range
+                lo[i], hi[i] = max(a, nom[i] - 1e-9), min(b, nom[i] + 1e-9)
+    return lo, hi
+
+
 @dataclass(frozen=True, slots=True)
 class Fit:
     """One fitted model: nominal parameters, effects, residual sum of squares on the fit grid."""
@@ -248,8 +269,11 @@ class FingerDynamicModel:
         return math.hypot(noise_std(self.data.y[self.data.keep]), step_err), step_err
 
     def params(self, theta: Array | tuple[float, ...]) -> FingerParams:
-        """Finger parameters with the refined ones set."""
-        return replace(self.base, **{n: float(v) for n, v in zip(PARAMS, theta, strict=True)})
+        """Finger parameters with the refined ones set (each inside its absolute bounds)."""
+        vals = {n: float(v) for n, v in zip(PARAMS, theta, strict=True)}
+        for n, (a, b) in ABSOLUTE_BOUNDS.items():
+            vals[n] = min(max(vals[n], a), b)
+        return replace(self.base, **vals)
 
     def run(self, theta: Array | tuple[float, ...], effects: tuple[tuple[str, float], ...]
             ) -> Array:
@@ -294,10 +318,9 @@ class FingerDynamicModel:
         """Joint least-squares fit of the refined parameters and the effects' values."""
         x0 = np.array(list(theta0) + [v for _, v in effects], float)
         nom = np.array([getattr(self.base, n) for n in PARAMS])
-        lo = np.concatenate([nom * (1 - self.tolerance), [CANDIDATES[n][1][0] for n, _ in effects]])
-        hi = np.concatenate([nom * (1 + self.tolerance), [CANDIDATES[n][1][1] for n, _ in effects]])
-        if self.tolerance <= 0:
-            lo[: len(PARAMS)], hi[: len(PARAMS)] = nom - 1e-9 * nom, nom + 1e-9 * nom
+        p_lo, p_hi = param_bounds(nom, self.tolerance)
+        lo = np.concatenate([p_lo, [CANDIDATES[n][1][0] for n, _ in effects]])
+        hi = np.concatenate([p_hi, [CANDIDATES[n][1][1] for n, _ in effects]])
         x0 = np.clip(x0, lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
         k = len(PARAMS)
         names = [n for n, _ in effects]
@@ -309,7 +332,9 @@ class FingerDynamicModel:
             r = self.run(x[:k], tuple(zip(names, x[k:].tolist(), strict=True)))[tr] - ym
             return np.where(np.isfinite(r), r, big)
 
-        scale = np.concatenate([np.abs(nom) * 0.1 + 1e-9,
+        scale = np.concatenate([[0.1 * (ABSOLUTE_BOUNDS[n][1] - ABSOLUTE_BOUNDS[n][0])
+                                 if n in ABSOLUTE_BOUNDS else abs(v) * 0.1 + 1e-9
+                                 for n, v in zip(PARAMS, nom, strict=True)],
                                 [0.1 * (CANDIDATES[n][1][1] - CANDIDATES[n][1][0])
                                  for n in names]])
         # a delay acts in whole physics steps: difference it over two of them

@@ -9,12 +9,14 @@ config) load it, so the simulation then has the physics the recording showed::
     units_per_n = 4.87
     motor_coulomb_units = 20.3
     k_base_nm_per_rad = 0.0641
+    speed_law_fraction = 0.62
 
     [effects]                     # catalog effects (teleop/effects.py)
     dead_time = 0.0913
 
-A file that names an unknown field or effect, or a value that is not a finite number, stops
-with one line naming the file and the key (exit 2).
+A file that names an unknown field or effect, a value that is not a finite number, or a share
+(``speed_law_fraction``) outside [0, 1], stops with one line naming the file and the key
+(exit 2).
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from sim.params import FingerParams, default_finger_params
 from teleop.effects import EffectSet
 from teleop.errors import UserInputError
 
+#: [finger] keys that are shares, refused outside [0, 1]
+FRACTIONS = ("speed_law_fraction",)
 _FLOAT_FIELDS = tuple(f.name for f in fields(FingerParams) if f.type in ("float", float))
 
 
@@ -67,6 +71,8 @@ def load_model(path: str | Path, base: FingerParams | None = None
         if key not in _FLOAT_FIELDS:
             raise UserInputError(f"{p}: [finger] {key}: not a finger parameter (sim/params.py)")
         values[key] = _number(p, "finger", key, v)
+        if key in FRACTIONS and not 0.0 <= values[key] <= 1.0:
+            raise UserInputError(f"{p}: [finger] {key} = {v!r} is outside [0, 1]")
     eff = EffectSet()
     for key, v in doc.get("effects", {}).items():
         try:

@@ -24,6 +24,21 @@ measurements, as the issue asks):
   friction ``motor_coulomb_units`` plus a viscous coefficient interpolated log-log through
   ``(u - u_c) / slope`` at the table's inputs, so the unloaded-string terminal speed reproduces
   Table 4.1.  The table's slope is read as motor-shaft rad/s.
+* **Speed-dependent friction law** (``speed_law_fraction``, default 0): a geared servo's
+  friction is better described as a function of its SPEED than of its effort.  At fraction
+  ``f`` the viscous friction (units) is ``(1 - f) d(u) w + f G(w)``: ``d(u)`` the effort law
+  above, ``G`` a friction force that depends on the shaft speed ``w`` only.  ``G`` goes
+  log-log (piecewise power law) through the four steady-state points the seed report and the
+  datasheet give, with the Coulomb part ``u_c = 5`` units taken off: Table 4.1's (0.06733 rad/s,
+  45 units), (0.1781, 95), (0.4240, 195) and the MX-28's no-load speed 55 rpm at 12 V = 5.76
+  rad/s at the stall input 1023 units (1018); exponents 0.768, 0.829 and 0.634 between them
+  (the last piece extended above 5.76 rad/s).  Below the first point it is linear through the
+  origin (668 units per rad/s), so its slope ``dG/dw`` stays finite at rest and the linearly
+  implicit step takes it like any damper.  Both laws give the table's terminal speeds at steady
+  state (the unloaded string: ``u - u_c = d(u) w = G(w)``), so every blend does too; they differ
+  in transients (a step of effort meets the effort law's coefficient at once, the speed law's
+  only as the shaft speeds up) and in position mode (the servo's effort swings while the shaft
+  is slow).  The effort law alone does not reach the no-load speed (3.1 rad/s at 1023 units).
 * **Spool radius** ``r_motor_m``: the report's "~5 units per N" and the MX-28's 2.5 N m stall at
   1023 load units give r = 2.5 / (1023 / 5) = 12.2 mm.
 * **Base moment arm** ``r_base_m`` = 1.42 r_motor: the driver's joint angle is shaft / 1.42 and
@@ -46,6 +61,7 @@ TABLE_4_2_MEASURED: tuple[tuple[float, float], ...] = ((15.7, 2.35), (9.8, 0.785
 TABLE_4_1_SLOPES: tuple[tuple[float, float], ...] = ((50.0, 0.06733), (100.0, 0.1781),
                                                      (200.0, 0.4240))
 JOINT_RATIO = 1.42  # motor shaft angle / driver joint angle (fingers)
+SPEED_LAW_POINTS = 4  # Table 4.1's three terminal speeds and the no-load speed
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +102,9 @@ class FingerParams:
     motor_coulomb_units: float = 5.0
     coulomb_velocity_rad_s: float = 0.005   # regularisation width of the friction sign
     damping_table: tuple[tuple[float, float], ...] = ()  # (input units, units per rad/s)
+    #: (shaft rad/s, friction units) points of the speed law (4 of them, by speed)
+    speed_friction_table: tuple[tuple[float, float], ...] = ()
+    speed_law_fraction: float = 0.0         # 0: effort-dependent law, 1: speed-dependent law
     kp_units_per_rad: float = 1000.0        # servo P gain on shaft angle error
     max_speed_rad_s: float = 5.76           # no-load shaft speed (55 rpm)
     command_delay_s: float = 0.0            # the stock driver's 0.09 s when enabled
@@ -101,6 +120,13 @@ class FingerParams:
     def k_flex_segment_nm_per_rad(self) -> float:
         """Stiffness of one of the ``n_flex`` series segments (n times the whole joint's)."""
         return self.k_flex_total_nm_per_rad * self.n_flex
+
+
+def _speed_friction_table(coulomb_units: float, no_load_rad_s: float, stall_units: float
+                          ) -> tuple[tuple[float, float], ...]:
+    """(shaft rad/s, friction units) at Table 4.1's terminal speeds and the no-load speed."""
+    pts = [(slope, u - coulomb_units) for u, slope in TABLE_4_1_SLOPES]
+    return (*pts, (no_load_rad_s, stall_units - coulomb_units))
 
 
 def _damping_table(coulomb_units: float) -> tuple[tuple[float, float], ...]:
@@ -165,9 +191,12 @@ def default_finger_params(calibration: str = "model") -> FingerParams:
     fit = fit_base_spring(CALIBRATIONS[calibration])
     k_base = r_base / fit.rad_per_n
     coulomb = 5.0
+    plain = FingerParams()
+    no_load, stall = plain.max_speed_rad_s, plain.max_effort_units
     return FingerParams(k_base_nm_per_rad=k_base, base_preload_rad=fit.preload_rad,
                         r_base_m=r_base, motor_coulomb_units=coulomb,
-                        damping_table=_damping_table(coulomb))
+                        damping_table=_damping_table(coulomb),
+                        speed_friction_table=_speed_friction_table(coulomb, no_load, stall))
 
 
 def with_tactile_gain(params: FingerParams, gain: float) -> FingerParams:
@@ -197,3 +226,35 @@ def motor_damping_units(params: FingerParams, effort_units: float) -> float:
         (u0, d0), (u1, d1) = table[i - 1], table[i]
     p = math.log(d1 / d0) / math.log(u1 / u0)
     return d0 * (u / u0) ** p
+
+
+def speed_law_pieces(params: FingerParams) -> tuple[tuple[float, float, float], ...]:
+    """(lower speed w0 rad/s, friction G0 units, exponent) of the speed law's power pieces
+    (the first starts at the table's first point; the last is extended upwards)."""
+    tab = params.speed_friction_table
+    if len(tab) != SPEED_LAW_POINTS:
+        raise ValueError(f"speed_friction_table needs {SPEED_LAW_POINTS} points, has {len(tab)}")
+    return tuple((w0, g0, math.log(g1 / g0) / math.log(w1 / w0))
+                 for (w0, g0), (w1, g1) in zip(tab[:-1], tab[1:], strict=True))
+
+
+def speed_friction_units(params: FingerParams, speed_rad_s: float) -> tuple[float, float]:
+    """The speed law: (friction units opposing shaft speed ``speed_rad_s``, its slope dG/dw in
+    units per rad/s, never negative).  Linear through the origin below the first point."""
+    return speed_friction_at(speed_rad_s, speed_law_pieces(params))
+
+
+def speed_friction_at(v: float, pieces: tuple[tuple[float, float, float], ...]
+                      ) -> tuple[float, float]:
+    """:func:`speed_friction_units` over the law's pieces (:func:`speed_law_pieces`)."""
+    w = -v if v < 0.0 else v
+    w0, g0, expo = pieces[0]
+    if w <= w0:
+        slope = g0 / w0
+        return slope * v, slope
+    for cand in pieces[1:]:
+        if w < cand[0]:
+            break
+        w0, g0, expo = cand
+    g = g0 * (w / w0) ** expo
+    return (g if v > 0.0 else -g), expo * g / w

@@ -22,6 +22,7 @@ import numpy as np
 
 from teleop.diagnose import engine
 from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, unexplained
+from teleop.effects import EffectSet
 
 Array = np.ndarray
 
@@ -186,16 +187,38 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 2, max_effects: in
     sel = engine.forward(path, nominal, tuple(model.candidates()), max_effects,
                          engine.Rule(criterion=criterion))
     chosen = []
+    verdicts = []
     prev = nominal
-    final = dict(sel.final.effects)  # every value as it stands in the final (joint) model
+    cands = model.candidates()
+    final_fit = sel.final
+    final = dict(final_fit.effects)  # every value as it stands in the final (joint) model
+    gone = {n for n, v in final.items() if at_absent_value(n, v, cands[n][1])}
     for st in sel.steps:
-        chosen.append((st.name, final.get(st.name, st.fit.effects[-1][1]),
-                       1.0 - st.fit.rss / prev.rss))
+        if st.name not in gone:  # an effect the joint model fitted away is not named
+            chosen.append((st.name, final.get(st.name, st.fit.effects[-1][1]),
+                           1.0 - st.fit.rss / prev.rss))
+            verdicts.append(st.verdict)
         prev = st.fit
-    warn = unexplained(_rms(sel.final.rss, len(tr)), floor)
-    return DynamicDiagnosis(nominal, sel.final, tuple(chosen), tuple(path.screened), floor, ym,
-                            tuple(st.verdict for st in sel.steps), sel.rejected[:3], warn,
-                            sel.ranking, sel.ambiguous)
+    if gone:
+        final_fit = model.finish(final_fit.theta, tuple((n, v) for n, v in final_fit.effects
+                                                        if n not in gone))
+    warn = unexplained(_rms(final_fit.rss, len(tr)), floor)
+    return DynamicDiagnosis(nominal, final_fit, tuple(chosen), tuple(path.screened), floor, ym,
+                            tuple(verdicts), sel.rejected[:3], warn, sel.ranking, sel.ambiguous)
+
+
+#: an effect within this share of its fit range of the value meaning "absent" is absent
+ABSENT_SHARE = 1e-4
+
+
+def at_absent_value(name: str, value: float, bounds: tuple[float, float]) -> bool:
+    """Whether ``value`` is the catalog effect's absent value (``EffectSet``'s neutral one: 0
+    for a friction, 1 for a gain, inf for a saturation), to ``ABSENT_SHARE`` of its range
+    (a bounded fit stops a hair inside its bound)."""
+    absent = getattr(EffectSet(), name)
+    if math.isinf(absent) or math.isinf(value):
+        return value == absent
+    return abs(value - absent) <= ABSENT_SHARE * (bounds[1] - bounds[0])
 
 
 def print_progress(msg: str) -> None:

@@ -24,7 +24,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from sim.finger_dynamic import FingerDynamicModel, dynamic_data  # noqa: E402
+from sim.finger_dynamic import PARAMS, FingerDynamicModel, dynamic_data  # noqa: E402
 from sim.params import default_finger_params  # noqa: E402
 from teleop.diagnose.select_sim import diagnose_dynamic  # noqa: E402
 from tests.sim.indep_finger import CATALOG, make  # noqa: E402
@@ -45,6 +45,7 @@ class Outcome:
     warning: bool          # unexplained-residual warning
     ambiguous: tuple[str, ...]
     gap: float = 0.0       # the refined nominal finger's residual rms over the floor
+    fraction: float = 0.0  # the final model's speed_law_fraction (motor friction law)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -59,8 +60,9 @@ def run_case(concealed: str | None, seed: int, law: str = "speed") -> Outcome:
                                dynamic_data(c.recording, "motor_angle_rad"), TOLERANCE)
     d = diagnose_dynamic(model)
     gap = float(np.sqrt(d.nominal.rss / len(model.data.split()[0]))) / d.floor_rad
+    frac = dict(zip(PARAMS, d.final.theta, strict=True)).get("speed_law_fraction", 0.0)
     return Outcome(concealed, seed, c.kind, c.value, tuple((n, v) for n, v, _ in d.chosen),
-                   d.warning is not None, tuple(d.ambiguous), gap)
+                   d.warning is not None, tuple(d.ambiguous), gap, float(frac))
 
 
 def batch(per_class: int, seed: int, law: str = "speed") -> list[Outcome]:
@@ -148,7 +150,8 @@ def main(argv: list[str]) -> int:
     for o in out:
         print(f"{o.concealed} seed {o.seed} ({o.kind}, value {o.value:.4g}): "
               f"{[(n, round(v, 4)) for n, v in o.named]} warning={o.warning} "
-              f"gap={o.gap:.2f} ambiguous={o.ambiguous}", file=sys.stderr)
+              f"gap={o.gap:.2f} fraction={o.fraction:.2f} ambiguous={o.ambiguous}",
+              file=sys.stderr)
     print(table(out))
     print(f"\nfloors: {floors(out)}")
     print(f"by input kind: {by_kind(out)}")

@@ -148,12 +148,15 @@ def test_bench_loops_follow_the_python_benchmark() -> None:
 def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
     """``simulate_dynamic`` (the fit's inner loop): delay line, excluded rows and restarts
     held at the measured angle (holding, or at a measured effort), sub-stepping and a coarser
-    step, on both engines."""
+    step, on both engines; the force-blocks case with the motor's friction part on the speed
+    law (``speed_law_fraction``, which the fit refines)."""
     from sim.finger_dynamic import dynamic_data, simulate_dynamic
 
     p = default_finger_params()
     rec = run_experiment(ExperimentSpec(exp, duration_s=10.0, rate_hz=1000.0), p,
                          ContactObject(), EffectSet()).recording
+    if exp == "force-blocks":
+        p = replace(p, speed_law_fraction=0.6)
     data = dynamic_data(rec, "motor_angle_rad")
     active = np.ones(len(data.t_s), dtype=bool)
     active[4000:4500] = False

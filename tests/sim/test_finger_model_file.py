@@ -36,6 +36,8 @@ def test_a_written_model_loads_back(tmp_path: Path) -> None:
     ("[effects]\nwarp = 1.0\n", "[effects]"),
     ("[other]\n", "[other]"),
     ("[finger\n", "not a TOML"),
+    ("[finger]\nspeed_law_fraction = 1.2\n", "[finger] speed_law_fraction"),
+    ("[finger]\nspeed_law_fraction = -0.1\n", "[finger] speed_law_fraction"),
 ])
 def test_a_bad_model_file_is_one_line_naming_file_and_key(tmp_path: Path, text: str,
                                                           names: str) -> None:
@@ -45,6 +47,25 @@ def test_a_bad_model_file_is_one_line_naming_file_and_key(tmp_path: Path, text: 
         load_model(path)
     msg = str(err.value)
     assert "\n" not in msg and str(path) in msg and names in msg
+
+
+def test_the_speed_law_fraction_round_trips_and_its_bounds_are_inclusive(
+        tmp_path: Path) -> None:
+    path = tmp_path / "m.toml"
+    for f in (0.0, 0.37, 1.0):
+        write_model(path, {"speed_law_fraction": f}, {}, "rec.csv")
+        assert load_model(path)[0].speed_law_fraction == f
+
+
+def test_an_out_of_range_fraction_stops_the_cli_with_exit_2(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "m.toml"
+    path.write_text("[finger]\nspeed_law_fraction = 1.5\n")
+    out = tmp_path / "o.csv"
+    assert main(["sim", "force-step", "--duration", "0.1", "--out", str(out),
+                 "--set", f"hand.sim.model={path}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and "speed_law_fraction" in err[0]
 
 
 def test_the_simulated_hand_loads_the_model_from_the_config(tmp_path: Path) -> None:
