@@ -5,9 +5,11 @@ latest of each -> publish the force command and the hand command -> return a
 :class:`~services.samples.ControllerSample`.
 
 Watchdog: no valid hand state for the state timeout and the force sent to the master ramps to
-zero; the hand's liveliness token vanishing zeroes it at once.  (The controller has no
-physical port, so scaling the force it sends changes no energy account; the master's
-passivity layer still governs what is displayed.)
+zero; the hand's liveliness token vanishing zeroes it at once.  While it is tripped (after the
+hand had been seen) the set-points sent may open but not close past those of the trip, and
+for one round trip after the hand returns (:func:`services.watchdog.blind_hold_step`).
+(The controller has no physical port, so scaling the force it sends changes no energy
+account; the master's passivity layer still governs what is displayed.)
 """
 
 from __future__ import annotations
@@ -18,13 +20,22 @@ from typing import Any
 
 from services.samples import ControllerSample
 from services.suites import get_suite
-from services.watchdog import WatchdogState, controller_state_watchdog, watchdog_step
+from services.watchdog import (
+    BlindHold,
+    WatchdogState,
+    blind_hold_step,
+    controller_state_watchdog,
+    watchdog_step,
+)
 from teleop.config import TeleopConfig
 from teleop.control.energy_channel import EnergyLedger
 from teleop.control.interface import ControllerSuite, control_params
 from teleop.control.transparency_layer import combined_force_n
-from teleop.messages import HandState, MasterState, scaled_model
+from teleop.messages import HandMode, HandState, MasterState, scaled_model
 from teleop.transport.bus import Bus
+
+#: hand modes whose set-points are joint angles (the blind hold applies to them)
+_ANGLE_MODES = (HandMode.POSITION, HandMode.VELOCITY)
 
 
 class ControllerService:
@@ -47,6 +58,7 @@ class ControllerService:
         self.hand_dropped = 0
         self.wd_params = controller_state_watchdog(cfg, watchdogs)
         self.wd = WatchdogState()
+        self.blind = BlindHold()
         self.events: list[str] = []
         self.ledger: EnergyLedger | None = None  # accounts after the last tick
 
@@ -86,10 +98,20 @@ class ControllerService:
             g = self.wd.gain
             fc = replace(fc, force_n=fc.force_n * g,
                          model=scaled_model(fc.model, g))
-        self.bus.publish("force_command", fc)
-        self.bus.publish("hand_command", out.hand_command)
-        led = self.ledger = out.ledger
         hc = out.hand_command
+        # blind (the hand seen before, its state now stale): no closing past the set-points
+        # of the trip until the master has felt the contact again (services.watchdog)
+        rt = out.round_trip_s
+        if not math.isfinite(rt):
+            rt = 2.0 * self.cfg.links.master_controller.delay_s
+        blind = self.wd.tripped and self.wd.trips > 0 and hc.mode in _ANGLE_MODES
+        self.blind, sp = blind_hold_step(self.blind, blind, tuple(hc.finger_setpoint_rad), t_s,
+                                         rt)
+        if sp != tuple(hc.finger_setpoint_rad):
+            hc = replace(hc, finger_setpoint_rad=sp)
+        self.bus.publish("force_command", fc)
+        self.bus.publish("hand_command", hc)
+        led = self.ledger = out.ledger
         return ControllerSample(
             t_s=t_s, setpoint_rad=tuple(hc.finger_setpoint_rad),  # type: ignore[arg-type]
             preshape_rad=hc.preshape_rad, commanded_force_n=fc.force_n,

@@ -11,6 +11,7 @@ sends), which keeps the energy accounts exact.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from teleop.config import TeleopConfig
@@ -103,3 +104,42 @@ def controller_state_watchdog(cfg: TeleopConfig, enabled: bool = True) -> Watchd
                                      False)
     return WatchdogParams(timeout, down_ramp_s=s.force_ramp_s, up_ramp_s=s.force_ramp_s,
                           enabled=enabled)
+
+
+@dataclass(frozen=True, slots=True)
+class BlindHold:
+    """The controller's hold on closing while it cannot see the hand.
+
+    ``limit_rad``: per finger, the set-point the hand may not be closed past (None: no hold);
+    ``until_s``: after the hand state returns, the hold stays until then (one round trip, so
+    the operator feels the restored contact before the hand follows his trigger);
+    ``last_rad``: the set-points sent last tick (where the hold starts).
+    """
+
+    limit_rad: tuple[float, ...] | None = None
+    until_s: float = -math.inf
+    last_rad: tuple[float, ...] | None = None
+
+
+def blind_hold_step(s: BlindHold, blind: bool, setpoints_rad: tuple[float, ...], t_s: float,
+                    round_trip_s: float) -> tuple[BlindHold, tuple[float, ...]]:
+    """One controller tick: the set-points to send and the next hold.
+
+    While ``blind`` (its hand-state watchdog tripped after the hand had been seen), the
+    set-points may open but not close past those sent when it tripped: the force to the
+    master ramps out then, and an operator who feels nothing squeezes on (live, 2026-11-26: a
+    hand starved of CPU for seconds, the trigger at its full 25 mm, set-points 3.0 rad sent,
+    pressure 4,900 against 675 per grasp once the hand ran again).  When the hand returns the
+    hold stays one ``round_trip_s`` (the master feels the contact again meanwhile), then
+    releases.  Opening only: the hold takes no energy account anywhere.
+    """
+    limit, until = s.limit_rad, s.until_s
+    if blind:
+        if limit is None:
+            limit = s.last_rad if s.last_rad is not None else setpoints_rad
+        until = t_s + (round_trip_s if math.isfinite(round_trip_s) else 0.0)
+    elif limit is not None and t_s >= until:
+        limit = None
+    out = (setpoints_rad if limit is None else
+           tuple(min(a, b) for a, b in zip(setpoints_rad, limit, strict=True)))
+    return BlindHold(limit, until, out), out
