@@ -5,9 +5,10 @@ latest of each -> publish the force command and the hand command -> return a
 :class:`~services.samples.ControllerSample`.
 
 Watchdog: no valid hand state for the state timeout and the force sent to the master ramps to
-zero; the hand's liveliness token vanishing zeroes it at once.  While it is tripped (after the
-hand had been seen) the set-points sent may open but not close past those of the trip, and
-for one round trip after the hand returns (:func:`services.watchdog.blind_hold_step`).
+zero; the hand's liveliness token vanishing zeroes it at once.  Once it has been tripped long
+enough for the force sent to ramp below half (after the hand had been seen), the set-points
+sent may open but not close past those of then, until one round trip after the hand returns
+(:func:`services.watchdog.blind_hold_step`).
 (The controller has no physical port, so scaling the force it sends changes no energy
 account; the master's passivity layer still governs what is displayed.)
 """
@@ -34,6 +35,11 @@ from teleop.control.transparency_layer import combined_force_n
 from teleop.messages import HandMode, HandState, MasterState, scaled_model
 from teleop.transport.bus import Bus
 
+#: the blind hold starts once the force sent has ramped below this share: the operator has
+#: lost half of what he felt.  A brief trip (four hand states lost at 20 % loss, up to 75 ms
+#: of a 0.2 s ramp) leaves him most of it; holding then, for the trip and a round trip, cost
+#: a grasp at 1 s in lockstep (0.47 of the first over 10 minutes)
+BLIND_GAIN = 0.5
 #: hand modes whose set-points are joint angles (the blind hold applies to them)
 _ANGLE_MODES = (HandMode.POSITION, HandMode.VELOCITY)
 
@@ -104,7 +110,8 @@ class ControllerService:
         rt = out.round_trip_s
         if not math.isfinite(rt):
             rt = 2.0 * self.cfg.links.master_controller.delay_s
-        blind = self.wd.tripped and self.wd.trips > 0 and hc.mode in _ANGLE_MODES
+        blind = (self.wd.tripped and self.wd.trips > 0 and self.wd.gain < BLIND_GAIN
+                 and hc.mode in _ANGLE_MODES)
         self.blind, sp = blind_hold_step(self.blind, blind, tuple(hc.finger_setpoint_rad), t_s,
                                          rt)
         if sp != tuple(hc.finger_setpoint_rad):

@@ -125,7 +125,8 @@ def blind_hold_step(s: BlindHold, blind: bool, setpoints_rad: tuple[float, ...],
                     round_trip_s: float) -> tuple[BlindHold, tuple[float, ...]]:
     """One controller tick: the set-points to send and the next hold.
 
-    While ``blind`` (its hand-state watchdog tripped after the hand had been seen), the
+    While ``blind`` (its hand-state watchdog tripped after the hand had been seen, the force
+    to the master ramped below half: ``services.controller_service.BLIND_GAIN``), the
     set-points may open but not close past those sent when it tripped: the force to the
     master ramps out then, and an operator who feels nothing squeezes on (live, 2026-11-26: a
     hand starved of CPU for seconds, the trigger at its full 25 mm, set-points 3.0 rad sent,

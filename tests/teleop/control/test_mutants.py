@@ -383,6 +383,10 @@ CAUGHT_BY: dict[str, tuple[str, str]] = {
     "dissipation_over_credited_x50": ("loop_passive_squeeze", "servo"),
     "franken_limiter_removed": ("master_keeps_reserve_steady", "object"),
     "guard_removed": ("master_passive_zigzag", "object"),
+    # the mutant's receivers drop most states as "energy_decrease", so the controller's
+    # hand-state watchdog trips; a blind hold engaged from the trip itself (not only once the
+    # force has ramped below half, services.controller_service.BLIND_GAIN) starves the hand
+    # of closing set-points and hides it here (margin +0.05 J against -0.086 J)
     "quanta_as_increments": ("lockstep_passive_grasps", "servo"),
     "store_below_zero": ("loop_passive_yielding", "object"),
     "setpoint_modulation_skipped": ("loop_passive_squeeze", "servo"),
