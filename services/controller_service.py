@@ -112,9 +112,9 @@ class ControllerService:
             rt = 2.0 * self.cfg.links.master_controller.delay_s
         blind = (self.wd.tripped and self.wd.trips > 0 and self.wd.gain < BLIND_GAIN
                  and hc.mode in _ANGLE_MODES)
-        self.blind, sp = blind_hold_step(self.blind, blind, tuple(hc.finger_setpoint_rad), t_s,
-                                         rt)
-        if sp != tuple(hc.finger_setpoint_rad):
+        wanted = tuple(hc.finger_setpoint_rad)
+        self.blind, sp = blind_hold_step(self.blind, blind, wanted, t_s, rt)
+        if sp != wanted:
             hc = replace(hc, finger_setpoint_rad=sp)
         self.bus.publish("force_command", fc)
         self.bus.publish("hand_command", hc)

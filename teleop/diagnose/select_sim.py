@@ -156,9 +156,9 @@ class SimPath:
         screened = []
         for name in names:
             grid = cands[name][0]
-            best = min(((model.rss(model.run(th, current.effects + ((name, z),))), z, i)
-                        for z in grid for i, th in enumerate(starts)), key=lambda x: x[0])
-            screened.append((best[0], name, best[1], starts[best[2]]))
+            rss, z, th = min(((model.rss(model.run(th, current.effects + ((name, z),))), z, th)
+                              for z in grid for th in starts), key=lambda x: x[0])
+            screened.append((rss, name, z, th))
         screened.sort(key=lambda x: x[0])
         _say(self.progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
                                                        for r, nm, _, _ in screened[:4]))

@@ -1,6 +1,7 @@
 """The controller's blind hold: while it cannot see the hand (its hand-state watchdog tripped
-after the hand had been seen) the set-points it sends may open but not close past those of the
-trip, and stay so for one round trip after the hand returns.
+after the hand had been seen, long enough for the force sent to ramp below half) the
+set-points it sends may open but not close past those of then, and stay so for one round trip
+after the hand returns.
 
 Without it, an operator who feels the rendered force ramp out squeezes on and the hand, once
 it runs again, closes to where the blind trigger went (live, 2026-11-26, 1 s both ways, a
@@ -53,7 +54,7 @@ def _cut_link(ctx: LockstepContext, t_s: float, cut_s: tuple[float, float],
         done.add("back")
 
 
-def _cut_run(monkeypatch: pytest.MonkeyPatch | None = None) -> tuple[np.ndarray, ...]:
+def _cut_run() -> tuple[np.ndarray, ...]:
     cfg = load_config(overrides=["links.master_controller.delay_s=0.2",
                                  "links.controller_hand.delay_s=0.2"])
     done: set[str] = set()
