@@ -101,6 +101,18 @@ class StaticPath:
     def holdout(self, current: _StaticFit, name: str, f: _StaticFit) -> tuple[float, bool]:
         return math.nan, True   # a few static points: nothing to hold out
 
+    def without(self, current: _StaticFit, name: str, f: _StaticFit) -> _StaticFit:
+        """``f`` with ``name`` removed, the rest held (:func:`engine.own_share`)."""
+        k = len(self.model.param_names())
+        keep = [i for i, e in enumerate(f.effects) if e != name]
+        effects = tuple(f.effects[i] for i in keep)
+        x = np.concatenate([f.x[:k], f.x[k:][keep]])
+        e = EffectSet()
+        for n, v in zip(effects, x[k:], strict=True):
+            e = e.with_effect(n, float(v))
+        r = self.model.simulate(x[:k], e, self.t, self.u) - self.y
+        return _StaticFit(effects, x, float(r @ r), f.sd, r)
+
     def fit_candidates(self, current: _StaticFit, names: tuple[str, ...]
                        ) -> list[tuple[str, _StaticFit]]:
         lo0, hi0 = self.model.bounds()

@@ -14,6 +14,7 @@ from teleop.diagnose.axis_model import Array
 from teleop.diagnose.ee_filter import EESignals
 from teleop.diagnose.equation_error import EE_EFFECTS, ee_effect_fit, ee_fit
 from teleop.diagnose.fit import (
+    BEFORE,
     NUMERIC_FAILURES,
     FitData,
     ModelFit,
@@ -149,6 +150,22 @@ class OEPath:
     def holdout(self, current: ModelFit, name: str, f: ModelFit) -> tuple[float, bool]:
         gain, rms0 = _holdout_gain(self.data, self.nominal, current, f, self.opts.max_nfev // 2)
         return gain, informative(rms0, self.noise)
+
+    def without(self, current: ModelFit, name: str, f: ModelFit) -> ModelFit | None:
+        """``f`` with the catalog effect ``name`` and its own parameters removed, the rest
+        held (:func:`teleop.diagnose.engine.own_share`); None for a library term."""
+        if name not in f.effects:
+            return None
+        own = {f"effect:{name}"} | ({"stribeck_velocity"} if name == "stiction" else set()) | (
+            {k for k in f.names if k.startswith(BEFORE)} if name == "dead_time" else set())
+        keep = [i for i, k in enumerate(f.names) if k not in own]
+        names = tuple(f.names[i] for i in keep)
+        theta = tuple(f.theta[i] for i in keep)
+        y = simulate(names, theta, self.data)
+        big = 10.0 * self.data.scales.position
+        r = np.where(np.isfinite(y - self.data.y), y - self.data.y, big)
+        return ModelFit(tuple(e for e in f.effects if e != name), names, theta,
+                        tuple(f.sigma[i] for i in keep), float(r @ r), f.n, y)
 
     def fit_candidates(self, current: ModelFit, names: tuple[str, ...]
                        ) -> list[tuple[str, ModelFit]]:
