@@ -139,7 +139,10 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
         "ranking": [{"name": n, "rss_reduction": g,
                      **({"delta_bic": scores[n], "score": scores[n]} if n in scores else {})}
                     for n, g in d.ranking],
-        "unexplained": d.warning, "note": data.note or None, "ambiguous": list(d.ambiguous)}
+        "unexplained": d.warning,
+        "unexplained_where": [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why,
+                               "excess": w.excess} for w in d.unexplained_where],
+        "note": data.note or None, "ambiguous": list(d.ambiguous)}
     return lines, doc
 
 

@@ -75,6 +75,11 @@ class DynamicData:
     note: str = ""          # what was excluded, for the report
     restart_effort_units: Array | None = None  # servo effort measured there (NaN: holding)
 
+    @property
+    def force_mode(self) -> Array:
+        """Per recorded row: whether the servo was in force mode (else position)."""
+        return np.array([c.mode == "force" for c in self.commands], bool)
+
     def split(self, block: int = 10, every: int = 4) -> tuple[Array, Array]:
         """Training and held-out positions in ``keep``: every ``every``-th block of ``block``
         compared samples is held out (interleaved, so both cover every regime)."""

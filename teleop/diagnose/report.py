@@ -10,6 +10,7 @@ from teleop.diagnose.diagnose import Diagnosis
 from teleop.diagnose.library import equation
 from teleop.diagnose.residual import ResidualStats
 from teleop.diagnose.results import ProposedTerm
+from teleop.diagnose.windows import where_text
 
 
 def _fmt(v: float) -> str:
@@ -66,10 +67,7 @@ def _warning(d: Diagnosis) -> str | None:
     w = unexplained(d.residual_after.rms, d.residual_after.noise_std)
     if w is None or not d.unexplained_where:
         return w
-    top = sorted(d.unexplained_where, key=lambda x: -x.excess)[:3]
-    return w + "; where (largest first): " + "; ".join(
-        f"{x.t_start_s:.3g}-{x.t_end_s:.3g} s (x{x.excess:.1f}, {x.why})" for x in top) + (
-        f"; {len(d.unexplained_where) - 3} more" if len(d.unexplained_where) > 3 else "")
+    return w + where_text(d.unexplained_where)
 
 
 def to_text(d: Diagnosis, source: str = "") -> str:

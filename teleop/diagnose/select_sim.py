@@ -22,6 +22,7 @@ import numpy as np
 
 from teleop.diagnose import engine
 from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, unexplained
+from teleop.diagnose.windows import Window, output_windows, where_text
 from teleop.effects import EffectSet
 
 Array = np.ndarray
@@ -34,7 +35,8 @@ class SimulatedModel(Protocol):
 
     @property
     def data(self) -> Any:
-        """The recording as the fit sees it: ``y``, ``keep`` and ``split()``."""
+        """The recording as the fit sees it: ``y``, ``keep`` and ``split()``; if it has them,
+        ``t_s`` (the report then says where a residual is unexplained) and ``force_mode``."""
 
     def candidates(self) -> dict[str, tuple[tuple[float, ...], tuple[float, float]]]:
         """Effect name -> (screening grid, bounds)."""
@@ -76,6 +78,7 @@ class DynamicDiagnosis:
     warning: str | None = None                     # unexplained residual
     scores: tuple[tuple[str, float], ...] = ()     # (effect, the rule's score), fitted ones
     ambiguous: tuple[str, ...] = ()                # pairs the data cannot separate
+    unexplained_where: tuple[Window, ...] = ()     # where the final residual stays over it
 
 
 def _say(progress: Callable[[str], None] | None, msg: str) -> None:
@@ -243,8 +246,17 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
         final_fit = model.finish(final_fit.theta, tuple((n, v) for n, v in final_fit.effects
                                                         if n not in gone))
     warn = unexplained(_rms(final_fit.rss, len(tr)), floor)
+    where: tuple[Window, ...] = ()
+    if warn is not None and getattr(data, "t_s", None) is not None:
+        modes = getattr(data, "force_mode", None)  # per row, if the model's data says
+        extra = (None if modes is None or modes.all() or not modes.any()
+                 else {"force mode": modes[data.keep], "position mode": ~modes[data.keep]})
+        where = output_windows(np.asarray(data.t_s)[data.keep], ym, final_fit.y - ym, floor,
+                               extra)
+        warn += where_text(where)
     return DynamicDiagnosis(nominal, final_fit, tuple(chosen), tuple(path.screened), floor, ym,
-                            tuple(verdicts), sel.rejected[:3], warn, sel.ranking, sel.ambiguous)
+                            tuple(verdicts), sel.rejected[:3], warn, sel.ranking, sel.ambiguous,
+                            where)
 
 
 #: an effect within this share of its fit range of the value meaning "absent" is absent
