@@ -155,7 +155,9 @@ def output_windows(t: Array, y: Array, r_final: Array, floor: float,
         return ()
     t, y, r = t[ok], y[ok], r_final[ok]
     dt = float(np.median(np.diff(t)))
-    conds = conditions(t, y, np.gradient(y, t), None)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = np.gradient(y, t)
+    conds = conditions(t, y, np.where(np.isfinite(v), v, 0.0), None)
     for k, m in (extra or {}).items():
         conds[k] = np.asarray(m, bool)[ok]
     return locate_windows(t, moving_rms(r, max(1, int(width_s / dt))) / floor, conds,
