@@ -22,7 +22,8 @@ import numpy as np
 
 from teleop.diagnose import engine
 from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, unexplained
-from teleop.diagnose.windows import Window, output_windows, where_text
+from teleop.diagnose.ee_noise import excess_windows
+from teleop.diagnose.windows import Window, conditions, where_text
 from teleop.effects import EffectSet
 
 Array = np.ndarray
@@ -127,6 +128,22 @@ def _fit_delay(model: SimulatedModel, effects: tuple[tuple[str, float], ...],
         if len(seen) == DELAY_STARTS:
             break
     return best
+
+
+def _where(t: Array, y: Array, r: Array, floor: float, extra: dict[str, Array] | None
+           ) -> tuple[Window, ...]:
+    """Where the final residual ``r`` of the measured output ``y`` stays over 3x the floor
+    (0.2 s moving rms), labelled by the operating condition (and the ``extra`` masks, e.g. the
+    servo mode), each with the output's range in it: the axis path's windows
+    (:func:`teleop.diagnose.ee_noise.excess_windows`) with a constant floor."""
+    ok = np.isfinite(r) & np.isfinite(y)
+    if floor <= 0 or ok.sum() < 3:
+        return ()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = np.gradient(y, t)  # a repeated time stamp: velocity 0 there, not a warning
+    conds = conditions(t, y, np.where(np.isfinite(v), v, 0.0), None)
+    conds.update(extra or {})
+    return excess_windows(t, y, np.where(ok, r, 0.0), np.full(len(t), floor), ok, conds)
 
 
 def screen_starts(theta: Any, nom0: tuple[float, ...]) -> tuple[Any, ...]:
@@ -251,8 +268,8 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
         modes = getattr(data, "force_mode", None)  # per row, if the model's data says
         extra = (None if modes is None or modes.all() or not modes.any()
                  else {"force mode": modes[data.keep], "position mode": ~modes[data.keep]})
-        where = output_windows(np.asarray(data.t_s)[data.keep], ym, final_fit.y - ym, floor,
-                               extra)
+        where = _where(np.asarray(data.t_s, float)[data.keep], ym, final_fit.y - ym, floor,
+                       extra)
         warn += where_text(where)
     return DynamicDiagnosis(nominal, final_fit, tuple(chosen), tuple(path.screened), floor, ym,
                             tuple(verdicts), sel.rejected[:3], warn, sel.ranking, sel.ambiguous,

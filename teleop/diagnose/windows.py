@@ -67,7 +67,7 @@ def label(mask_window: Array, conds: dict[str, Array]) -> str:
             scored.append((inside / overall, name))
     scored.sort(reverse=True)
     if not scored:
-        return "no single operating condition (acts throughout)"
+        return "no operating condition stands out"
     return " + ".join(name for _, name in scored[:2])
 
 
@@ -143,22 +143,3 @@ def where_text(windows: tuple[Window, ...], top: int = 3) -> str:
         f"{x.t_start_s:.3g}-{x.t_end_s:.3g} s (x{x.excess:.1f}, {x.why})" for x in big) + (
         f"; {len(windows) - top} more" if len(windows) > top else "")
 
-
-def output_windows(t: Array, y: Array, r_final: Array, floor: float,
-                   extra: dict[str, Array] | None = None, width_s: float = 0.2,
-                   factor: float = 3.0) -> tuple[Window, ...]:
-    """Where a simulated output's final residual ``r_final`` stays over ``factor`` times the
-    ``floor`` (moving RMS over ``width_s``), labelled by the operating condition of the
-    measured output ``y`` (and the ``extra`` masks, e.g. the command mode)."""
-    ok = np.isfinite(r_final) & np.isfinite(y)
-    if floor <= 0 or ok.sum() < 3:
-        return ()
-    t, y, r = t[ok], y[ok], r_final[ok]
-    dt = float(np.median(np.diff(t)))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        v = np.gradient(y, t)
-    conds = conditions(t, y, np.where(np.isfinite(v), v, 0.0), None)
-    for k, m in (extra or {}).items():
-        conds[k] = np.asarray(m, bool)[ok]
-    return locate_windows(t, moving_rms(r, max(1, int(width_s / dt))) / floor, conds,
-                          factor=factor)
