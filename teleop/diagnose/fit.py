@@ -194,6 +194,13 @@ def _inside(v: float, lo: float, hi: float) -> float:
     return v
 
 
+def guarded_residual(y_fit: Array, data: FitData) -> Array:
+    """Simulated minus measured output, a sample the simulation could not give (not finite)
+    counted as ten position scales off."""
+    r = y_fit - data.y
+    return np.where(np.isfinite(r), r, 10.0 * data.scales.position)
+
+
 def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
               effects: tuple[str, ...] = (), max_nfev: int = 60,
               mask: Array | None = None) -> ModelFit:
@@ -216,21 +223,15 @@ def fit_model(data: FitData, nominal: AxisNominal, start: dict[str, float],
     hi = np.array([_bounds(n, nominal, data)[1] for n in names])
     x_start = np.array([_inside(v, a, b) for v, a, b in zip(x_start, lo, hi, strict=True)])
     xs = np.array([_scale(n, v, data) for n, v in zip(names, x_start, strict=True)])
-    big = 10.0 * data.scales.position
-    y_meas = data.y
-    sel = np.ones(len(y_meas), bool) if mask is None else mask
+    sel = np.ones(len(data.y), bool) if mask is None else mask
 
     def resid(th: Array) -> Array:
-        ys = simulate(names, th, data)
-        r = ys - y_meas
-        r = np.where(np.isfinite(r), r, big)
-        return r[sel]
+        return guarded_residual(simulate(names, th, data), data)[sel]
 
     res = optimize.least_squares(resid, x_start, bounds=(lo, hi), x_scale=xs,
                                  max_nfev=max_nfev, method="trf", diff_step=1e-4)
     y_fit = simulate(names, res.x, data)
-    y_meas = data.y
-    r = np.where(np.isfinite(y_fit - y_meas), y_fit - y_meas, big)
+    r = guarded_residual(y_fit, data)
     rss = float(r[sel] @ r[sel])
     n = int(sel.sum())
     jac = res.jac

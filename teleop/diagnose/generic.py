@@ -48,18 +48,20 @@ class _StaticFit:
     residual: Array
 
 
+def _effect_set(effects: tuple[str, ...], values: Array) -> EffectSet:
+    """The catalog effects ``effects`` at ``values``."""
+    e = EffectSet()
+    for name, v in zip(effects, values, strict=True):
+        e = e.with_effect(name, float(v))
+    return e
+
+
 def _fit(model: NominalModel, t: Array, u: Array | None, y: Array, effects: tuple[str, ...],
          start: Array, lo: Array, hi: Array) -> _StaticFit:
     k = len(model.param_names())
 
-    def eff_of(x: Array) -> EffectSet:
-        e = EffectSet()
-        for name, v in zip(effects, x[k:], strict=True):
-            e = e.with_effect(name, float(v))
-        return e
-
     def resid(x: Array) -> Array:
-        return model.simulate(x[:k], eff_of(x), t, u) - y
+        return model.simulate(x[:k], _effect_set(effects, x[k:]), t, u) - y
 
     x0 = np.clip(start, lo + 1e-9 * np.abs(lo) + 1e-12, hi - 1e-9 * np.abs(hi) - 1e-12)
     res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.maximum(np.abs(x0),
@@ -107,10 +109,7 @@ class StaticPath:
         keep = [i for i, e in enumerate(f.effects) if e != name]
         effects = tuple(f.effects[i] for i in keep)
         x = np.concatenate([f.x[:k], f.x[k:][keep]])
-        e = EffectSet()
-        for n, v in zip(effects, x[k:], strict=True):
-            e = e.with_effect(n, float(v))
-        r = self.model.simulate(x[:k], e, self.t, self.u) - self.y
+        r = self.model.simulate(x[:k], _effect_set(effects, x[k:]), self.t, self.u) - self.y
         return _StaticFit(effects, x, float(r @ r), f.sd, r)
 
     def fit_candidates(self, current: _StaticFit, names: tuple[str, ...]

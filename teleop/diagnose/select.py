@@ -19,6 +19,7 @@ from teleop.diagnose.fit import (
     FitData,
     ModelFit,
     fit_model,
+    guarded_residual,
     scan_effect,
     simulate,
 )
@@ -162,8 +163,7 @@ class OEPath:
         names = tuple(f.names[i] for i in keep)
         theta = tuple(f.theta[i] for i in keep)
         y = simulate(names, theta, self.data)
-        big = 10.0 * self.data.scales.position
-        r = np.where(np.isfinite(y - self.data.y), y - self.data.y, big)
+        r = guarded_residual(y, self.data)
         return ModelFit(tuple(e for e in f.effects if e != name), names, theta,
                         tuple(f.sigma[i] for i in keep), float(r @ r), f.n, y)
 

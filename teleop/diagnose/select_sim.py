@@ -210,23 +210,24 @@ class SimPath:
             grid = cands[name][0]
             pts = sorted(((model.rss(model.run(th, current.effects + ((name, z),))), z, th)
                           for z in grid for th in starts), key=lambda x: x[0])
-            screened.append((pts[0][0], name, pts[0][1], pts[0][2], pts))
+            screened.append((pts[0][0], name, pts))   # (best RSS, name, points best first)
         screened.sort(key=lambda x: x[0])
         _say(self.progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
-                                                       for r, nm, *_ in screened[:4]))
+                                                       for r, nm, _ in screened[:4]))
         out = []
-        for _, name, z, theta, pts in screened[:self.refine_top]:
+        for _, name, pts in screened[:self.refine_top]:
             _say(self.progress, f"fitting {name}")
             if name == "dead_time":
                 f = _fit_delay(model, current.effects, pts)
             else:
+                _, z, theta = pts[0]
                 f = model.fit(theta, current.effects + ((name, z),))
             out.append((name, f))
         if not current.effects:
             gains = sorted(((nm, 1.0 - f.rss / current.rss) for nm, f in out),
                            key=lambda x: -x[1])
             self.screened = gains + [(nm, 1.0 - r / current.rss)
-                                     for r, nm, *_ in screened[self.refine_top:]]
+                                     for r, nm, _ in screened[self.refine_top:]]
         return out
 
 

@@ -142,4 +142,3 @@ def where_text(windows: tuple[Window, ...], top: int = 3) -> str:
     return "; where (largest first): " + "; ".join(
         f"{x.t_start_s:.3g}-{x.t_end_s:.3g} s (x{x.excess:.1f}, {x.why})" for x in big) + (
         f"; {len(windows) - top} more" if len(windows) > top else "")
-
