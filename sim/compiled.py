@@ -20,7 +20,7 @@ import time
 
 import numpy as np
 
-from sim.compiled_kernel import K_PADSTART, K_SFRAC, K_SPIECES, N_K, X_FLEX
+from sim.compiled_kernel import K_PADSTART, K_RIP_S, K_SFRAC, K_SPIECES, N_K, X_FLEX
 from sim.contact import ContactObject
 from sim.finger import _consts
 from sim.hand import HandMotorCommand, HandParams, HandSimState, _objects
@@ -48,7 +48,8 @@ def pack_params(p: FingerParams) -> tuple[np.ndarray, np.ndarray]:
     k[31] = p.n_flex
     k[K_PADSTART] = _PROX_PAD_START_M
     k[K_SFRAC] = c[32]
-    k[K_SPIECES:] = np.array(c[33], dtype=np.float64).ravel() if c[32] != 0.0 else 0.0
+    k[K_SPIECES:K_RIP_S] = np.array(c[33], dtype=np.float64).ravel() if c[32] != 0.0 else 0.0
+    k[K_RIP_S:] = c[34:37]
     dsegs = np.array(c[27], dtype=np.float64).reshape(-1, 4)
     if len(_PACKED) > 64:
         _PACKED.clear()

@@ -8,7 +8,8 @@ rounding (``tests/sim/test_compiled_engine.py``).
 
 Numba's disk cache keys on this file alone, not on the kernels it inlines: a change of the
 step or of the array layouts (:mod:`sim.compiled_kernel`; the dents of a yielding object moved
-the flexure angles to ``X_FLEX`` = 16) must touch this file too, or a stale cache runs.
+the flexure angles to ``X_FLEX`` = 16, the shaft ripple made ``N_K`` 46) must touch this
+file too, or a stale cache runs.
 """
 
 from __future__ import annotations

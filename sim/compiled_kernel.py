@@ -40,7 +40,8 @@ MODE_POSITION, MODE_FORCE, MODE_VELOCITY = 0.0, 1.0, 2.0
  K_CT, K_SLACK, K_PROX, K_SEG, K_P1X, K_P1Y, K_P2X, K_P2Y, K_PO, K_LD, K_LO, K_HI, K_SLO, K_SHI,
  K_UMAX, K_KP, K_FC0, K_VS, K_N, K_PADSTART, K_SFRAC) = range(34)
 K_SPIECES = 34  # the speed law's 3 pieces (lower speed, friction units, exponent), 9 numbers
-N_K = 43
+K_RIP_S, K_RIP_C, K_RIP_W = 43, 44, 45  # the position-periodic shaft force (sin, cos, w)
+N_K = 46
 (E_DEAD, E_COULOMB, E_ASYM, E_STICTION, E_BACKLASH, E_SAT, E_GAIN, E_LAG, E_OFFSET, E_SERIES,
  E_NONLIN, E_GRAVITY) = range(12)
 KIND_NONE, KIND_CYLINDER, KIND_BLOCK = 0.0, 1.0, 2.0

@@ -5,6 +5,10 @@ run many steps per call: a finger under a command sequence (the experiments, the
 the whole hand between two reads (``SimHand``, with the energy audit of ``sim.audit``), and
 the benchmark's 1 kHz controller (``teleop bench sim``).  Same arithmetic as the Python
 reference, in the same order.
+
+Numba's disk cache keys on this file alone, not on the step it inlines: a change of the step
+or of the array layouts (the shaft ripple made ``N_K`` 46) must touch this file too, or a
+stale cache runs.
 """
 
 from __future__ import annotations

@@ -41,6 +41,9 @@ from sim.compiled_kernel import (
     K_PRELOAD,
     K_PROX,
     K_RB,
+    K_RIP_C,
+    K_RIP_S,
+    K_RIP_W,
     K_RM,
     K_SEG,
     K_SFRAC,
@@ -103,6 +106,9 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
             + fslope * rm
         f_m = u / upn * rm - ffric * rm + fslope * rm * v_m \
             - sfrac * (g_v - g_slope * v_m) / upn * rm
+    if k[K_RIP_W] != 0.0:  # position-periodic shaft force, explicit in the angle
+        f_m -= (k[K_RIP_S] * math.sin(k[K_RIP_W] * th_m)
+                + k[K_RIP_C] * math.cos(k[K_RIP_W] * th_m)) * rm
     # finger geometry (proximal frame)
     phi = x[X_PHI]
     v_phi = x[X_VPHI]

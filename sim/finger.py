@@ -107,7 +107,8 @@ def _consts(p: FingerParams) -> tuple[Any, ...]:
            p.max_effort_units, p.kp_units_per_rad,
            p.motor_coulomb_units / p.units_per_n, p.coulomb_velocity_rad_s,
            p.speed_law_fraction,
-           speed_law_pieces(p) if p.speed_law_fraction != 0.0 else ())
+           speed_law_pieces(p) if p.speed_law_fraction != 0.0 else (),
+           p.shaft_ripple_sin_n, p.shaft_ripple_cos_n, p.shaft_ripple_per_rad)
     if len(_CONSTS) > 64:
         _CONSTS.clear()
     _CONSTS[id(p)] = (p, out)
@@ -119,7 +120,7 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
     """One linearly implicit step; ``fixed_tension_n >= 0`` detaches the motor (hung weight)."""
     (l12_0, kseg, upn, rm, rb, kb, preload, c_phi, cseg, m_phi, m_fl, m_m, kt, ct, slack,
      prox_len, seg, p1x, p1y, p2x, p2y, po, ld, lo, hi, slo, shi, dsegs, umax, kp, fc0,
-     vs, sfrac, spieces) = _consts(p)
+     vs, sfrac, spieces, rip_s, rip_c, rip_w) = _consts(p)
     t = state.t_s
     # --- command path: driver delay + dead_time effect -----------------------------------
     delay = p.command_delay_s + eff.dead_time
@@ -188,6 +189,8 @@ def _step(state: FingerState, cmd: MotorCommand, p: FingerParams, obj: ContactOb
             + fslope * rm
         f_m = u / upn * rm - ffric * rm + fslope * rm * v_m \
             - sfrac * (g_v - g_slope * v_m) / upn * rm
+    if rip_w != 0.0:  # position-periodic shaft force, explicit in the angle
+        f_m -= (rip_s * math.sin(rip_w * th_m) + rip_c * math.cos(rip_w * th_m)) * rm
     # --- finger geometry (proximal frame) ------------------------------------------------
     phi = state.prox_rad
     v_phi = state.prox_vel_rad_s

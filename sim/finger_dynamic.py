@@ -33,7 +33,9 @@ from sim.finger import (
     finger_step,
     initial_finger_state,
 )
+from sim.finger_ripple import AMPLITUDE_BOUNDS_N, split, wave_grid
 from sim.params import JOINT_RATIO, FingerParams
+from teleop.diagnose.library import Term
 from teleop.diagnose.residual import noise_std
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
@@ -218,6 +220,11 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
     return out
 
 
+def effect_bounds(name: str) -> tuple[float, float]:
+    """Fit bounds of a catalog effect or of a shaft ripple's amplitude."""
+    return AMPLITUDE_BOUNDS_N if Term.is_key(name) else CANDIDATES[name][1]
+
+
 def param_bounds(nom: Array, tolerance: float) -> tuple[Array, Array]:
     """Bounds of the refined parameters: nominal +-``tolerance`` (a hair around the nominal
     at tolerance 0), the :data:`ABSOLUTE_BOUNDS` ones inside their own range."""
@@ -255,6 +262,9 @@ class FingerDynamicModel:
     tolerance: float = 0.2
     dt_s: float = 2e-3
     engine_name: str = DEFAULT_ENGINE
+    #: amplitude the shaft ripple scan probes with, N of tendon force (the motor's own
+    #: Coulomb friction is about 1 N; the independent batch's cogging 0.5-1.5 N)
+    ripple_probe: float = 1.0
 
     def candidates(self) -> dict[str, tuple[tuple[float, ...], tuple[float, float]]]:
         """Effects the selection tries: (screening grid, bounds)."""
@@ -280,15 +290,31 @@ class FingerDynamicModel:
             vals[n] = min(max(vals[n], a), b)
         return replace(self.base, **vals)
 
+    def shaft_span_rad(self) -> float:
+        """The shaft angle range the compared samples cover (a proximal-angle output: times
+        the joint ratio; NaN with fewer than two finite samples)."""
+        y = self.data.y[self.data.keep]
+        y = y[np.isfinite(y)]
+        if len(y) < 2:
+            return math.nan
+        return float(np.ptp(y)) * (1.0 / self.data.out_scale
+                                   if self.data.output == "motor_angle_rad" else JOINT_RATIO)
+
+    def ripple_waves(self) -> Array:
+        """Wavenumbers (1/rad of shaft angle) the selection scans for a position-periodic
+        shaft force (``sim.finger_ripple``), from the shaft angle range covered."""
+        return wave_grid(self.shaft_span_rad())
+
     def run(self, theta: Array | tuple[float, ...], effects: tuple[tuple[str, float], ...]
             ) -> Array:
-        """Simulated output on the fit grid (NaN if the simulation fails)."""
-        eff = EffectSet()
+        """Simulated output on the fit grid (NaN if the simulation fails); ``effects`` may
+        hold a shaft ripple's library pair (``sim.finger_ripple``)."""
         try:
-            for n, v in effects:
-                eff = eff.with_effect(n, v)
-            y = simulate_dynamic(self.params(theta), eff, self.data, self.dt_s,
-                                 self.engine_name)[self.data.keep]
+            eff, ripple = split(effects)
+            p = self.params(theta)
+            if ripple:
+                p = replace(p, **ripple)
+            y = simulate_dynamic(p, eff, self.data, self.dt_s, self.engine_name)[self.data.keep]
         except (OverflowError, ZeroDivisionError, ValueError, FloatingPointError):
             return np.full(len(self.data.keep), math.nan)
         return y
@@ -324,8 +350,8 @@ class FingerDynamicModel:
         x0 = np.array(list(theta0) + [v for _, v in effects], float)
         nom = np.array([getattr(self.base, n) for n in PARAMS])
         p_lo, p_hi = param_bounds(nom, self.tolerance)
-        lo = np.concatenate([p_lo, [CANDIDATES[n][1][0] for n, _ in effects]])
-        hi = np.concatenate([p_hi, [CANDIDATES[n][1][1] for n, _ in effects]])
+        lo = np.concatenate([p_lo, [effect_bounds(n)[0] for n, _ in effects]])
+        hi = np.concatenate([p_hi, [effect_bounds(n)[1] for n, _ in effects]])
         x0 = np.clip(x0, lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
         k = len(PARAMS)
         names = [n for n, _ in effects]
@@ -340,7 +366,7 @@ class FingerDynamicModel:
         scale = np.concatenate([[0.1 * (ABSOLUTE_BOUNDS[n][1] - ABSOLUTE_BOUNDS[n][0])
                                  if n in ABSOLUTE_BOUNDS else abs(v) * 0.1 + 1e-9
                                  for n, v in zip(PARAMS, nom, strict=True)],
-                                [0.1 * (CANDIDATES[n][1][1] - CANDIDATES[n][1][0])
+                                [0.1 * (effect_bounds(n)[1] - effect_bounds(n)[0])
                                  for n in names]])
         # a delay acts in whole physics steps: difference it over two of them
         steps = np.array([1e-3] * k + [2.0 * self.dt_s if n == "dead_time" else 1e-3

@@ -14,6 +14,9 @@ config) load it, so the simulation then has the physics the recording showed::
     [effects]                     # catalog effects (teleop/effects.py)
     dead_time = 0.0913
 
+A position-periodic shaft force the diagnosis found outside the catalog is written under
+``[finger]`` as ``shaft_ripple_sin_n``, ``shaft_ripple_cos_n`` and ``shaft_ripple_per_rad``.
+
 A file that names an unknown field or effect, a value that is not a finite number, or a share
 (``speed_law_fraction``) outside [0, 1], stops with one line naming the file and the key
 (exit 2).

@@ -108,6 +108,12 @@ class FingerParams:
     kp_units_per_rad: float = 1000.0        # servo P gain on shaft angle error
     max_speed_rad_s: float = 5.76           # no-load shaft speed (55 rpm)
     command_delay_s: float = 0.0            # the stock driver's 0.09 s when enabled
+    # position-periodic shaft force (cogging, a detent; outside the effect catalog, found by
+    # ``teleop diagnose --model finger``): a sin(w th) + b cos(w th) N of tendon force against
+    # the motor at shaft angle th; w = shaft_ripple_per_rad (0: none)
+    shaft_ripple_sin_n: float = 0.0
+    shaft_ripple_cos_n: float = 0.0
+    shaft_ripple_per_rad: float = 0.0
     # gravity on the links (off: the hand's orientation is not modelled; see effects)
     # contact sensing
     pressure_per_n: float = 100.0           # raw TakkTile units per N at the kernel peak

@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 
 from teleop.diagnose.criterion import DEFAULT, Array, Criterion, structured_n
+from teleop.diagnose.library import PERIODIC
 
 SEPARATE: dict[frozenset[str], str] = {
     frozenset({"dead_time", "actuator_lag"}):
@@ -39,6 +40,11 @@ SEPARATE: dict[frozenset[str], str] = {
     frozenset({"actuator_gain", "nonlinear_stiffness"}):
         "static holds at several efforts (a gain scales every deflection, a cubic spring only "
         "the large ones)",
+    **{frozenset({PERIODIC, name}):
+       "slow moves at constant speed over several periods of the angle, in both directions (a "
+       "friction or a play acts the same at every angle, a position-periodic force repeats "
+       "with it)"
+       for name in ("coulomb_friction", "asymmetric_friction", "stiction", "backlash")},
 }
 
 

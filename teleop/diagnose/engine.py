@@ -55,8 +55,9 @@ def own_share(path: Any, current: F, name: str, f: F) -> F | None:
     live dynamixel recording a 0.1 rad sensor offset scored 10.8 while the refit moved the
     motor gain and friction to their bounds: with those held, the offset itself was worth a
     1 % RSS change).  So an effect must carry the rule's score on its own too.  The dynamic
-    finger, axis output-error and static paths say; the equation-error path need not (its
-    nominal is a linear least-squares fit, already at its optimum), nor a library term."""
+    finger (its position-periodic term too), axis output-error and static paths say; the
+    equation-error path need not (its nominal is a linear least-squares fit, already at its
+    optimum), nor the axis path's library terms."""
     without = getattr(path, "without", None)
     return None if without is None else without(current, name, f)
 

@@ -34,6 +34,9 @@ KINDS = (*STATE_KINDS, "udelay")
 PREFIX = "term:"
 #: A fitted wavenumber of the sin/cos pair first named with wavenumber W: ``wave:W``.
 WAVE = "wave:"
+#: The engine's candidate name of a position-periodic sin/cos pair whose wavenumber a
+#: simulated model scans (:mod:`teleop.diagnose.select_sim_terms`)
+PERIODIC = "term:periodic"
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,6 +51,11 @@ class Term:
     def key(self) -> str:
         """Its parameter name in a fit (``term:KIND:CONST``)."""
         return f"{PREFIX}{self.kind}:{self.const:.6g}"
+
+    @staticmethod
+    def is_key(name: str) -> bool:
+        """Whether a fit's parameter name is a library term's (not a catalog effect's)."""
+        return name.startswith(PREFIX)
 
     @staticmethod
     def parse(key: str) -> Term:

@@ -6,8 +6,11 @@ Greedy forward selection: the model's candidates (``model.candidates()``) are sc
 value grid with the current model held, the best ``refine_top`` are fitted jointly with the
 refined nominal parameters, and the first one that passes the shared selection rule
 (:mod:`teleop.diagnose.criterion`: penalised likelihood with an effective sample size, plus
-held-out gain on interleaved blocks the fit did not see) is kept.  Selection stops when the
-training residual is at the floor (noise and the coarse physics step's own error).
+held-out gain on interleaved blocks the fit did not see) is kept.  A model that can carry a
+position-periodic sin/cos pair (``ripple_waves()``: the finger's shaft ripple) has it as one
+more candidate, ``term:periodic`` (:mod:`teleop.diagnose.select_sim_terms`), reported apart
+from the catalog effects.  Selection stops when the training residual is at the floor (noise
+and the coarse physics step's own error).
 """
 
 from __future__ import annotations
@@ -23,6 +26,8 @@ import numpy as np
 from teleop.diagnose import engine
 from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, unexplained
 from teleop.diagnose.ee_noise import excess_windows
+from teleop.diagnose.library import PERIODIC
+from teleop.diagnose.select_sim_terms import fit_pair, has_pair, without_pair
 from teleop.diagnose.windows import Window, conditions, where_text
 from teleop.effects import EffectSet
 
@@ -80,6 +85,8 @@ class DynamicDiagnosis:
     scores: tuple[tuple[str, float], ...] = ()     # (effect, the rule's score), fitted ones
     ambiguous: tuple[str, ...] = ()                # pairs the data cannot separate
     unexplained_where: tuple[Window, ...] = ()     # where the final residual stays over it
+    terms: tuple[tuple[str, float], ...] = ()      # a position-periodic pair found (final)
+    term_verdict: Verdict | None = None            # the rule's verdict on it
 
 
 def _say(progress: Callable[[str], None] | None, msg: str) -> None:
@@ -105,6 +112,11 @@ def _polish_delay(model: SimulatedModel, f: Any, steps: int = 6) -> Any:
 
 #: a delay is fitted from this many of its best screening points
 DELAY_STARTS = 2
+#: no position-periodic term is scanned when a catalog candidate of the step already leaves
+#: the training residual within this factor of the floor: with two parameters more (and its
+#: scanned wavenumber) the term would outscore it only by fitting the noise.  The scan is the
+#: costly part (two simulations per wavenumber: 27 s of a 60 s, 1 kHz recording's 50 s)
+SCAN_FLOOR = 1.1
 
 
 def _fit_delay(model: SimulatedModel, effects: tuple[tuple[str, float], ...],
@@ -186,7 +198,9 @@ class SimPath:
         return self.model.residual(f)
 
     def k_added(self, base: Any, f: Any) -> int:
-        return len(f.effects) - len(base.effects)
+        # a sin/cos pair's scanned wavenumber counts as one more parameter
+        return len(f.effects) - len(base.effects) + int(has_pair(f.effects)
+                                                         and not has_pair(base.effects))
 
     def at_floor(self, current: Any, n_chosen: int) -> bool:
         return _rms(current.rss, self.n_train) < self.floor_factor * self.floor
@@ -194,6 +208,8 @@ class SimPath:
     def without(self, current: Any, name: str, f: Any) -> Any:
         """``f`` with ``name`` removed, its refined parameters and other effects held
         (:func:`teleop.diagnose.engine.own_share`)."""
+        if name == PERIODIC:
+            return self.model.finish(f.theta, without_pair(f.effects))
         return self.model.finish(f.theta, tuple((n, v) for n, v in f.effects if n != name))
 
     def holdout(self, current: Any, name: str, f: Any) -> tuple[float, bool]:
@@ -207,6 +223,8 @@ class SimPath:
         starts = screen_starts(current.theta, self.nom0)
         screened = []
         for name in names:
+            if name == PERIODIC:
+                continue
             grid = cands[name][0]
             pts = sorted(((model.rss(model.run(th, current.effects + ((name, z),))), z, th)
                           for z in grid for th in starts), key=lambda x: x[0])
@@ -223,6 +241,11 @@ class SimPath:
                 _, z, theta = pts[0]
                 f = model.fit(theta, current.effects + ((name, z),))
             out.append((name, f))
+        best = min((g.rss for _, g in out), default=math.inf)
+        if PERIODIC in names and _rms(best, self.n_train) > SCAN_FLOOR * self.floor:
+            f = fit_pair(model, current, self.progress)
+            if f is not None:
+                out.append((PERIODIC, f))
         if not current.effects:
             gains = sorted(((nm, 1.0 - f.rss / current.rss) for nm, f in out),
                            key=lambda x: -x[1])
@@ -245,17 +268,22 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
                    f"{len(te)} held out)")
     nominal = model.fit(nom0, ())
     path = SimPath(model, refine_top, floor_factor, progress, nom0, floor, len(tr), len(te))
-    sel = engine.forward(path, nominal, tuple(model.candidates()), max_effects,
-                         engine.Rule(criterion=criterion))
+    cands = model.candidates()
+    names = (*cands, *((PERIODIC,) if hasattr(model, "ripple_waves") else ()))
+    sel = engine.forward(path, nominal, names, max_effects, engine.Rule(criterion=criterion))
     chosen = []
     verdicts = []
     prev = nominal
-    cands = model.candidates()
     final_fit = sel.final
     final = dict(final_fit.effects)  # every value as it stands in the final (joint) model
-    gone = {n for n, v in final.items() if at_absent_value(n, v, cands[n][1])}
+    gone = {n for n, v in final.items() if n in cands and at_absent_value(n, v, cands[n][1])}
+    terms: tuple[tuple[str, float], ...] = ()
+    term_verdict = None
     for st in sel.steps:
-        if st.name not in gone:  # an effect the joint model fitted away is not named
+        if st.name == PERIODIC:  # outside the catalog: reported as a term, not an effect
+            terms = tuple((n, v) for n, v in final_fit.effects if n not in cands)
+            term_verdict = st.verdict
+        elif st.name not in gone:  # an effect the joint model fitted away is not named
             chosen.append((st.name, final.get(st.name, st.fit.effects[-1][1]),
                            1.0 - st.fit.rss / prev.rss))
             verdicts.append(st.verdict)
@@ -274,7 +302,7 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
         warn += where_text(where)
     return DynamicDiagnosis(nominal, final_fit, tuple(chosen), tuple(path.screened), floor, ym,
                             tuple(verdicts), sel.rejected[:3], warn, sel.ranking, sel.ambiguous,
-                            where)
+                            where, terms, term_verdict)
 
 
 #: an effect within this share of its fit range of the value meaning "absent" is absent

@@ -8,8 +8,9 @@ default ``--tolerance 0.2``, output ``motor_angle_rad``).  Case ``i`` of class `
 ``SEED + 11 i + j`` (the kind alternates with the seed's parity, so every class sees both the
 force and the position protocol).  Prints one markdown table: per concealed class how often it
 was ranked first, named at all, what else was named (false discoveries), clean recordings called
-clean, and out-of-catalog (cogging) recordings named as a catalog effect with confidence (no
-unexplained-residual warning).  Per-case lines go to stderr.
+clean (no catalog effect and no term outside it named), out-of-catalog (cogging) recordings named
+as a catalog effect with confidence (no unexplained-residual warning), and where a
+position-periodic term (outside the catalog) was found.  Per-case lines go to stderr.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ class Outcome:
     ambiguous: tuple[str, ...]
     gap: float = 0.0       # the refined nominal finger's residual rms over the floor
     fraction: float = 0.0  # the final model's speed_law_fraction (motor friction law)
+    term: bool = False     # a position-periodic term (outside the catalog) was found
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -62,7 +64,7 @@ def run_case(concealed: str | None, seed: int, law: str = "speed") -> Outcome:
     gap = float(np.sqrt(d.nominal.rss / len(model.data.split()[0]))) / d.floor_rad
     frac = dict(zip(PARAMS, d.final.theta, strict=True)).get("speed_law_fraction", 0.0)
     return Outcome(concealed, seed, c.kind, c.value, tuple((n, v) for n, v, _ in d.chosen),
-                   d.warning is not None, tuple(d.ambiguous), gap, float(frac))
+                   d.warning is not None, tuple(d.ambiguous), gap, float(frac), bool(d.terms))
 
 
 def batch(per_class: int, seed: int, law: str = "speed") -> list[Outcome]:
@@ -74,15 +76,16 @@ def batch(per_class: int, seed: int, law: str = "speed") -> list[Outcome]:
 def table(out: list[Outcome]) -> str:
     """The confusion matrix as markdown."""
     rows = ["| concealed | n | ranked first | named at all | other catalog names (false "
-            "discoveries) | unexplained-residual warning |", "|---|---|---|---|---|---|"]
+            "discoveries) | unexplained-residual warning | periodic term found |",
+            "|---|---|---|---|---|---|---|"]
     for name in CLASSES:
         cs = [o for o in out if o.concealed == name]
         if not cs:
             continue
         fd = Counter(n for o in cs for n in o.names if n != name)
-        warn = f"{sum(o.warning for o in cs)}/{len(cs)}"
+        warn = f"{sum(o.warning for o in cs)}/{len(cs)} | {sum(o.term for o in cs)}/{len(cs)}"
         if name is None:
-            clean = sum(not o.named for o in cs)
+            clean = sum(not o.named and not o.term for o in cs)
             rows.append(f"| none (clean) | {len(cs)} | called clean **{clean}/{len(cs)}** | - | "
                         f"{dict(fd) or '-'} | {warn} |")
         elif name == "cogging":
@@ -107,7 +110,7 @@ def by_kind(out: list[Outcome]) -> str:
         first = sum(bool(o.named) and o.names[0] == o.concealed for o in conc)
         clean = [o for o in out if o.kind == kind and o.concealed is None]
         parts.append(f"{kind}: ranked first {first}/{len(conc)}, clean "
-                     f"{sum(not o.named for o in clean)}/{len(clean)}")
+                     f"{sum(not o.named and not o.term for o in clean)}/{len(clean)}")
     return "; ".join(parts)
 
 
@@ -126,7 +129,7 @@ def floors(out: list[Outcome]) -> str:
     conc = [o for o in out if o.concealed not in (None, "cogging")]
     first = sum(bool(o.named) and o.names[0] == o.concealed for o in conc)
     clean = [o for o in out if o.concealed is None]
-    ok = sum(not o.named for o in clean)
+    ok = sum(not o.named and not o.term for o in clean)
     cog = [o for o in out if o.concealed == "cogging"]
     conf = sum(bool(o.named) and not o.warning for o in cog)
     parts = []
@@ -150,7 +153,8 @@ def main(argv: list[str]) -> int:
     for o in out:
         print(f"{o.concealed} seed {o.seed} ({o.kind}, value {o.value:.4g}): "
               f"{[(n, round(v, 4)) for n, v in o.named]} warning={o.warning} "
-              f"gap={o.gap:.2f} fraction={o.fraction:.2f} ambiguous={o.ambiguous}",
+              f"gap={o.gap:.2f} fraction={o.fraction:.2f} term={o.term} "
+              f"ambiguous={o.ambiguous}",
               file=sys.stderr)
     print(table(out))
     print(f"\nfloors: {floors(out)}")

@@ -172,6 +172,23 @@ def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
     assert np.isnan(a[4100]) and not np.isnan(a[4600])
 
 
+@pytest.mark.parametrize("exp", ["force-blocks", "position"])
+def test_a_shaft_ripple_matches_the_reference(exp: str) -> None:
+    """The position-periodic shaft force (``shaft_ripple_*``, what ``teleop diagnose`` fits for
+    cogging) on both engines: the same to 1e-9 rad, and it moves the finger."""
+    from sim.finger_dynamic import dynamic_data, simulate_dynamic
+
+    p = default_finger_params()
+    rec = run_experiment(ExperimentSpec(exp, duration_s=10.0, rate_hz=1000.0), p,
+                         ContactObject(), EffectSet()).recording
+    data = dynamic_data(rec, "motor_angle_rad")
+    q = replace(p, shaft_ripple_sin_n=1.2, shaft_ripple_cos_n=-0.5, shaft_ripple_per_rad=31.4)
+    a, b = (simulate_dynamic(q, EffectSet(), data, 2e-3, e) for e in ENGINES)
+    assert np.max(np.abs(a - b)) <= TOL_RAD
+    plain = simulate_dynamic(p, EffectSet(), data, 2e-3, "python")
+    assert np.max(np.abs(b - plain)) > 1e-3
+
+
 def test_warm_up_loads_the_signature_the_hand_loop_uses() -> None:
     """No first-call stall: after ``SimHand.start`` the reads compile nothing new, even with
     integer times and goals (a new argument type would compile a new machine code)."""

@@ -108,3 +108,30 @@ def test_backlash_shifts_the_settled_shaft_by_half_the_play() -> None:
         return float(tr.motor_rad[-1])
 
     assert settled(0.04) - settled(0.0) == pytest.approx(0.02, abs=1e-4)
+
+
+def test_cogging_is_found_as_a_periodic_shaft_force_not_a_catalog_effect() -> None:
+    """The batch's cogging case 740 (force protocol; 1.02 N at a 0.106 rad period, outside the
+    catalog): it was read as Coulomb friction (score 87) before the finger could carry a
+    position-periodic shaft force.  Now that term wins, at the generator's period and
+    amplitude, and no catalog effect is named."""
+    import math
+
+    from sim.finger_dynamic import FingerDynamicModel, dynamic_data
+    from sim.finger_ripple import split
+    from teleop.diagnose.select_sim import diagnose_dynamic
+    from tests.sim.indep_finger import _effect, draw_truth
+
+    c = make("cogging", 740)
+    rng = np.random.default_rng(740)
+    draw_truth(rng)
+    truth = _effect("cogging", rng)[0]
+    model = FingerDynamicModel(default_finger_params(),
+                               dynamic_data(c.recording, "motor_angle_rad"))
+    d = diagnose_dynamic(model)
+    assert d.chosen == () and d.warning is None
+    found = split(d.terms)[1]
+    assert found["shaft_ripple_per_rad"] == pytest.approx(2 * math.pi / truth.cogging_period_rad,
+                                                          rel=0.05)
+    amp = math.hypot(found["shaft_ripple_sin_n"], found["shaft_ripple_cos_n"])
+    assert amp == pytest.approx(truth.cogging_n, rel=0.2)

@@ -103,3 +103,33 @@ def test_the_simulation_matches_the_recording_after_write_params(tmp_path: Path)
     e_before = _nrmse(read_recording(before).column("motor_angle_rad"), y)
     e_after = _nrmse(read_recording(after).column("motor_angle_rad"), y)
     assert e_after < 0.3 * e_before, (e_before, e_after, model.read_text())
+
+
+@pytest.mark.slow
+def test_a_found_shaft_ripple_is_written_and_the_simulation_then_matches(
+        tmp_path: Path) -> None:
+    """A finger whose shaft has a position-periodic force (outside the catalog): the
+    diagnosis finds it as a term, ``--write-params`` writes it as ``shaft_ripple_*``, and
+    ``teleop sim`` with the file reproduces the recording."""
+    import json
+
+    truth = replace(default_finger_params(), shaft_ripple_sin_n=1.0, shaft_ripple_cos_n=0.3,
+                    shaft_ripple_per_rad=100.0)
+    spec = ExperimentSpec("force-blocks", duration_s=6.0, rate_hz=1000.0)
+    rec = run_experiment(spec, truth, ContactObject(kind="none"), EffectSet()).recording
+    rec_path, model, js = tmp_path / "rec.csv", tmp_path / "m.toml", tmp_path / "d.json"
+    write_recording(rec_path, rec)
+    assert main(["diagnose", str(rec_path), "--model", "finger", "--write-params", str(model),
+                 "--json", str(js)]) == 0
+    doc = json.loads(js.read_text())
+    assert doc["effects"] == [] and len(doc["proposed"]) == 1
+    fp, eff = load_model(model)
+    assert fp.shaft_ripple_per_rad == pytest.approx(100.0, rel=0.1) and eff == EffectSet()
+    before, after = tmp_path / "before.csv", tmp_path / "after.csv"
+    for out, extra in ((before, []), (after, ["--set", f"hand.sim.model={model}"])):
+        assert main(["sim", "force-blocks", "--duration", "6", "--rate-hz", "1000", "--out",
+                     str(out), *extra]) == 0
+    y = rec.column("motor_angle_rad")
+    e_before = _nrmse(read_recording(before).column("motor_angle_rad"), y)
+    e_after = _nrmse(read_recording(after).column("motor_angle_rad"), y)
+    assert e_after < 0.3 * e_before, (e_before, e_after, model.read_text())

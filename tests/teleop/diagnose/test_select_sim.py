@@ -84,6 +84,9 @@ class LagModel:
         return Fit(tuple(theta), effects, self.rss(y),
                    float(np.sum((y - self.data.y)[te] ** 2)), y)
 
+    def bounds(self, name: str) -> tuple[float, float]:
+        return CANDS[name][1]
+
     def fit(self, theta0: tuple[float, ...], effects: tuple[tuple[str, float], ...]) -> Fit:
         names = [n for n, _ in effects]
         tr, _ = self.data.split()
@@ -92,8 +95,8 @@ class LagModel:
             eff = tuple(zip(names, x[1:].tolist(), strict=True))
             return (self.run((x[0],), eff) - self.data.y)[tr]
 
-        lo = [0.16] + [CANDS[n][1][0] for n in names]  # the time constant within +-20 %
-        hi = [0.24] + [CANDS[n][1][1] for n in names]
+        lo = [0.16] + [self.bounds(n)[0] for n in names]  # the time constant within +-20 %
+        hi = [0.24] + [self.bounds(n)[1] for n in names]
         x0 = np.clip([theta0[0], *[v for _, v in effects]], lo, hi)
         x = optimize.least_squares(resid, x0, bounds=(lo, hi)).x
         return self.finish((float(x[0]),), tuple(zip(names, x[1:].tolist(), strict=True)))

@@ -1,0 +1,121 @@
+"""A position-periodic term as one more candidate of the simulated-model path
+(:mod:`teleop.diagnose.select_sim_terms`), on a model that is not the finger: a first-order
+lag whose output is pulled by ``a sin(w y) + b cos(w y)``, written here."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from teleop.diagnose.library import PERIODIC, Term
+from teleop.diagnose.select_sim import SimPath, diagnose_dynamic
+from teleop.diagnose.select_sim_terms import pair, screen, without_pair
+from tests.teleop.diagnose.test_select_sim import CANDS, NOISE, Data, LagModel
+
+W_TRUE = 25.0
+A_TRUE = 0.03
+
+
+def rippled_lag(t: np.ndarray, u: np.ndarray, tau: float, offset: float = 0.0,
+                gain: float = 1.0, a: float = 0.0, b: float = 0.0, w: float = 0.0
+                ) -> np.ndarray:
+    y = np.zeros(len(t))
+    for i in range(1, len(t)):
+        k = math.exp(-(t[i] - t[i - 1]) / tau)
+        pull = a * math.sin(w * y[i - 1]) + b * math.cos(w * y[i - 1]) if w else 0.0
+        y[i] = k * y[i - 1] + (1 - k) * (gain * u[i - 1] - pull)
+    return y + offset
+
+
+@dataclass(frozen=True)
+class RippleModel(LagModel):
+    """The lag model of ``test_select_sim`` that can carry a sin/cos pair."""
+
+    ripple_probe: float = 0.03
+
+    def bounds(self, name: str) -> tuple[float, float]:
+        return (-0.1, 0.1) if Term.is_key(name) else CANDS[name][1]
+
+    def ripple_waves(self) -> np.ndarray:
+        span = float(np.ptp(self.data.y))
+        return np.arange(2 * math.pi * 1.5 / span, 40.0, math.pi / (4 * span))
+
+    def run(self, theta: tuple[float, ...], effects: tuple[tuple[str, float], ...]
+            ) -> np.ndarray:
+        e = dict(effects)
+        amp = {Term.parse(n).kind: (v, Term.parse(n).const) for n, v in effects
+               if Term.is_key(n)}
+        a, w = amp.get("sin", (0.0, 0.0))
+        b, _ = amp.get("cos", (0.0, 0.0))
+        return rippled_lag(self.data.t, self.data.u, float(theta[0]),
+                           e.get("sensor_offset", 0.0), e.get("actuator_gain", 1.0), a, b, w)
+
+
+def _data(seed: int, a: float) -> Data:
+    rng = np.random.default_rng(seed)
+    t = np.arange(600) * 0.01
+    u = np.repeat(rng.uniform(-1, 1, 30), 20)
+    y = rippled_lag(t, u, 0.21, a=a, b=0.1 * a, w=W_TRUE)
+    return Data(t, u, y + rng.normal(0, NOISE, len(t)))
+
+
+def test_a_periodic_pull_is_found_as_a_term_not_a_catalog_effect() -> None:
+    d = diagnose_dynamic(RippleModel(_data(1, A_TRUE)))
+    assert d.chosen == () and d.term_verdict is not None and d.term_verdict.accepted
+    (ks, a), (kc, b) = d.terms
+    assert Term.parse(ks).kind == "sin" and Term.parse(kc).kind == "cos"
+    assert Term.parse(ks).const == Term.parse(kc).const
+    assert abs(Term.parse(ks).const - W_TRUE) < 0.05 * W_TRUE
+    assert abs(a - A_TRUE) < 0.1 * A_TRUE and abs(b - 0.1 * A_TRUE) < 0.1 * A_TRUE
+    assert d.warning is None
+
+
+def test_the_term_is_not_proposed_on_a_clean_recording() -> None:
+    d = diagnose_dynamic(RippleModel(_data(2, 0.0), floor_rad=NOISE / 3))
+    assert d.chosen == () and d.terms == ()
+
+
+def test_the_scanned_wavenumber_counts_as_a_parameter() -> None:
+    m = RippleModel(_data(1, A_TRUE))
+    path = SimPath(m, 2, 2.0, None, m.nominal_start(), NOISE, 450, 150)
+    base = m.finish(m.nominal_start(), (("sensor_offset", 0.0),))
+    f = m.finish(m.nominal_start(), (("sensor_offset", 0.0), *pair(W_TRUE, A_TRUE, 0.0)))
+    assert path.k_added(base, f) == 3
+    assert path.k_added(f, f) == 0
+    alone = path.without(base, PERIODIC, f)
+    assert alone.effects == (("sensor_offset", 0.0),) == without_pair(f.effects)
+    assert np.array_equal(alone.y, m.run(m.nominal_start(), (("sensor_offset", 0.0),)))
+
+
+def test_the_scan_finds_the_true_wavenumber() -> None:
+    m = RippleModel(_data(3, A_TRUE))
+    nom = m.fit(m.nominal_start(), ())
+    w, a, b, rss = screen(m, nom)[0]
+    assert abs(w - W_TRUE) < 0.05 * W_TRUE and rss < 0.2 * nom.rss
+
+
+def test_no_scan_when_a_catalog_effect_already_leaves_the_floor(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An offset explains the recording to the noise: the costly wavenumber scan is skipped
+    (a term could beat the offset only by fitting the noise); with a periodic pull it runs."""
+    import teleop.diagnose.select_sim as select_sim
+
+    calls = []
+    real = select_sim.fit_pair
+
+    def spy(model, current, progress):  # type: ignore[no-untyped-def]
+        calls.append(current)
+        return real(model, current, progress)
+
+    monkeypatch.setattr(select_sim, "fit_pair", spy)
+    rng = np.random.default_rng(4)
+    t = np.arange(600) * 0.01
+    u = np.repeat(rng.uniform(-1, 1, 30), 20)
+    offset = Data(t, u, rippled_lag(t, u, 0.21, offset=0.05) + rng.normal(0, NOISE, len(t)))
+    d = diagnose_dynamic(RippleModel(offset))
+    assert [c[0] for c in d.chosen] == ["sensor_offset"] and calls == []
+    diagnose_dynamic(RippleModel(_data(1, A_TRUE)))
+    assert calls
