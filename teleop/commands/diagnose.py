@@ -27,7 +27,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser("diagnose", help="find what physics a model leaves out of a recording",
                        description="Fit a nominal model to recordings, locate where the residual "
                        "exceeds the noise, fit catalog effects as augmentations, keep what the "
-                       "data support, and report the fit before and after.")
+                       "data support, propose terms outside the catalog where they explain "
+                       "more (the axis: a typed library; the finger: a position-periodic "
+                       "shaft force), and report the fit before and after.")
     p.add_argument("recordings", nargs="+", type=Path, metavar="REC.csv",
                    help="recording(s) (one joint fit; each has its own initial state)")
     p.add_argument("--model", choices=("axis", "finger"), default="axis",
