@@ -29,8 +29,10 @@ from sim.finger_model_file import write_model
 from sim.finger_ripple import describe, split
 from sim.params import FingerParams, default_finger_params
 from teleop.diagnose.candidates import explanation
-from teleop.diagnose.library import Term
+from teleop.diagnose.results import ProposedTerm
 from teleop.diagnose.select_sim import DynamicDiagnosis, diagnose_dynamic, print_progress
+from teleop.diagnose.select_sim_terms import without_pair
+from teleop.diagnose.windows import windows_json
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording
@@ -96,7 +98,10 @@ def _nrmse(y: Array, ym: Array) -> float:
 
 
 def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: float,
-                    span_rad: float = float("nan")) -> tuple[list[str], dict[str, object]]:
+                    ripple: dict[str, float], span_rad: float = float("nan")
+                    ) -> tuple[list[str], dict[str, object]]:
+    """Report lines and JSON; ``ripple``: the shaft ripple found (``FingerParams`` fields,
+    empty without one)."""
     ym = d.y_meas
     before, after = _nrmse(d.nominal.y, ym), _nrmse(d.final.y, ym)
     lines = [f"{what} (output-error on {data.output}, physics step {dt_s * 1e3:.1f} ms, "
@@ -116,7 +121,6 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
     else:
         lines.append("missing physics: none the data support above the floor "
                      f"({d.floor_rad:.2g} rad: noise and the physics step)")
-    ripple = split(d.terms)[1]
     tv = d.term_verdict
     if ripple and tv is not None:
         lines.append("physics outside the catalog, scanned over its wavenumber and kept by "
@@ -151,13 +155,12 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
                      **({"delta_bic": scores[n], "score": scores[n]} if n in scores else {})}
                     for n, g in d.ranking],
         "unexplained": d.warning,
-        "unexplained_where": [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why,
-                               "excess": w.excess} for w in d.unexplained_where],
+        "unexplained_where": windows_json(d.unexplained_where),
         "note": data.note or None, "ambiguous": list(d.ambiguous),
         # the axis path's key for terms outside the catalog
-        "proposed": ([{"term": ",".join(n for n, _ in d.terms), "keys": [n for n, _ in d.terms],
-                       "coefs": [v for _, v in d.terms], "score": tv.score,
-                       "holdout_gain": tv.holdout_gain, "equation": describe(ripple, span_rad),
+        "proposed": ([{**ProposedTerm(tuple(n for n, _ in d.terms),
+                                      tuple(v for _, v in d.terms), tv.score,
+                                      tv.holdout_gain).to_json(describe(ripple, span_rad)),
                        "params": ripple}] if ripple and tv is not None else [])}
     return lines, doc
 
@@ -187,12 +190,12 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
     model = FingerDynamicModel(default_finger_params(), data, args.tolerance)
     quiet = getattr(args, "json_path", None) is not None and str(args.json_path) == "-"
     d = diagnose_dynamic(model, progress=None if quiet else print_progress)
-    lines, doc = _dynamic_report(d, what, data, model.dt_s, model.shaft_span_rad())
+    ripple = split(d.terms)[1]
+    lines, doc = _dynamic_report(d, what, data, model.dt_s, ripple, model.shaft_span_rad())
     out = getattr(args, "write_params", None)
     if out is not None:
-        write_model(out, {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)),
-                          **split(d.terms)[1]},
-                    {n: v for n, v in d.final.effects if not Term.is_key(n)}, str(rec.source))
+        write_model(out, {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)), **ripple},
+                    dict(without_pair(d.final.effects)), str(rec.source))
         lines.append(f"wrote the refined finger and its effects to {out} (load with --set "
                      f"hand.sim.model={out})")
     info(args, "\n".join(lines))

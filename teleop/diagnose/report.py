@@ -10,7 +10,7 @@ from teleop.diagnose.diagnose import Diagnosis
 from teleop.diagnose.library import equation
 from teleop.diagnose.residual import ResidualStats
 from teleop.diagnose.results import ProposedTerm
-from teleop.diagnose.windows import where_text
+from teleop.diagnose.windows import where_text, windows_json
 
 
 def _fmt(v: float) -> str:
@@ -33,8 +33,7 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
                      "score": e.delta_bic,
                      "uncertainty": dict(e.std), "holdout_gain": e.holdout_gain,
                      "explanation": e.explanation} for e in d.effects],
-        "windows": [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why,
-                     "excess": w.excess} for w in d.windows],
+        "windows": windows_json(d.windows),
         "fit": {"before": {"nrmse": d.nrmse_before, "params": dict(d.nominal_params)},
                 "after": {"nrmse": d.nrmse_after, "params": dict(d.final_params)}},
         "ranking": [{"name": n, "delta_bic": b} for n, b in d.ranking],
@@ -42,13 +41,9 @@ def to_json(d: Diagnosis, model: str = "axis") -> dict[str, Any]:
         "selection": "penalised likelihood (effective sample size) + held-out gain",
         "unexplained": _warning(d),
         "ambiguous": list(d.ambiguous),
-        "unexplained_where": [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why,
-                               "excess": w.excess} for w in d.unexplained_where],
+        "unexplained_where": windows_json(d.unexplained_where),
     }
-    out["proposed"] = [{"term": ",".join(p.keys), "keys": list(p.keys),
-                        "coefs": list(p.coefs), "score": p.score,
-                        "holdout_gain": p.holdout_gain, "equation": _equation(p, d.units)}
-                       for p in d.proposed]
+    out["proposed"] = [p.to_json(_equation(p, d.units)) for p in d.proposed]
     if d.validation is not None:
         out["validation"] = {"before": {"nrmse": d.validation.nrmse_before},
                              "after": {"nrmse": d.validation.nrmse_after}}

@@ -55,6 +55,11 @@ class ProposedTerm:
     score: float
     holdout_gain: float
 
+    def to_json(self, equation: str) -> dict[str, object]:
+        """The term as the diagnose JSON's ``proposed`` entries write it."""
+        return {"term": ",".join(self.keys), "keys": list(self.keys), "coefs": list(self.coefs),
+                "score": self.score, "holdout_gain": self.holdout_gain, "equation": equation}
+
 
 @dataclass(frozen=True, slots=True)
 class Validation:

@@ -142,3 +142,9 @@ def where_text(windows: tuple[Window, ...], top: int = 3) -> str:
     return "; where (largest first): " + "; ".join(
         f"{x.t_start_s:.3g}-{x.t_end_s:.3g} s (x{x.excess:.1f}, {x.why})" for x in big) + (
         f"; {len(windows) - top} more" if len(windows) > top else "")
+
+
+def windows_json(windows: tuple[Window, ...]) -> list[dict[str, object]]:
+    """The windows as the diagnose JSON writes them (``windows``, ``unexplained_where``)."""
+    return [{"t_start_s": w.t_start_s, "t_end_s": w.t_end_s, "why": w.why, "excess": w.excess}
+            for w in windows]
