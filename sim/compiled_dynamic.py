@@ -105,7 +105,7 @@ def _prime(x: np.ndarray, t: np.ndarray, rows: np.ndarray, i: int, delay: float,
     line[10] = 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)  # threads run simulations side by side (sim.parallel_runs)
 def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndarray,
                   active: np.ndarray, restart: np.ndarray, effort: np.ndarray,
                   has_restart: bool, dt_s: float,

@@ -27,7 +27,7 @@ from teleop.diagnose import engine
 from teleop.diagnose.criterion import DEFAULT, Criterion, Verdict, unexplained
 from teleop.diagnose.ee_noise import excess_windows
 from teleop.diagnose.library import PERIODIC
-from teleop.diagnose.select_sim_terms import fit_pair, has_pair, without_pair
+from teleop.diagnose.select_sim_terms import each, fit_pair, has_pair, runs, without_pair
 from teleop.diagnose.windows import Window, conditions, where_text
 from teleop.effects import EffectSet
 
@@ -35,7 +35,9 @@ Array = np.ndarray
 
 
 class SimulatedModel(Protocol):
-    """What the selection needs of a model simulated against a recording."""
+    """What the selection needs of a model simulated against a recording.  A model may also
+    have ``map(fn, items)``: the selection then hands it every batch of independent
+    simulations and fits (``select_sim_terms.each``; the finger runs them on every core)."""
 
     dt_s: float      # physics step (a dead time is polished in whole steps)
 
@@ -98,16 +100,15 @@ def _polish_delay(model: SimulatedModel, f: Any, steps: int = 6) -> Any:
     """A delay acts in whole physics steps, where least squares sees no gradient: scan whole
     steps around the fitted value (the other values held)."""
     eff = dict(f.effects)
-    best = f
-    for k in range(-steps, steps + 1):
-        z = eff["dead_time"] + k * model.dt_s
-        if k == 0 or z < 0:
-            continue
-        g = model.finish(f.theta, tuple((n, z if n == "dead_time" else v)
-                                        for n, v in f.effects))
-        if g.rss < best.rss:
-            best = g
-    return best
+    tried = [tuple((n, z if n == "dead_time" else v) for n, v in f.effects)
+             for k in range(-steps, steps + 1)
+             if k != 0 and (z := eff["dead_time"] + k * model.dt_s) >= 0]
+    best, best_rss = None, f.rss
+    for e, y in zip(tried, runs(model, [(f.theta, e) for e in tried]), strict=True):
+        r = model.rss(y)
+        if r < best_rss:
+            best, best_rss = e, r
+    return f if best is None else model.finish(f.theta, best)
 
 
 #: a delay is fitted from this many of its best screening points
@@ -128,17 +129,17 @@ def _fit_delay(model: SimulatedModel, effects: tuple[tuple[str, float], ...],
     the fit from 100 ms, which found 98 ms), and the lag beat it.  So the delay is fitted
     from its ``DELAY_STARTS`` best screening points of different values, each polished, and
     the best kept."""
-    best = None
-    seen: set[float] = set()
+    starts: dict[float, Any] = {}
     for _, z, theta in pts:
-        if z in seen:
-            continue
-        seen.add(z)
-        f = _polish_delay(model, model.fit(theta, effects + (("dead_time", z),)))
+        if len(starts) == DELAY_STARTS:
+            break
+        starts.setdefault(z, theta)
+    best = None
+    for f in each(model, lambda s: _polish_delay(model, model.fit(s[1], effects
+                                                                  + (("dead_time", s[0]),))),
+                  list(starts.items())):
         if best is None or f.rss < best.rss:
             best = f
-        if len(seen) == DELAY_STARTS:
-            break
     return best
 
 
@@ -226,21 +227,26 @@ class SimPath:
             if name == PERIODIC:
                 continue
             grid = cands[name][0]
-            pts = sorted(((model.rss(model.run(th, current.effects + ((name, z),))), z, th)
-                          for z in grid for th in starts), key=lambda x: x[0])
+            zs = [(z, th) for z in grid for th in starts]
+            ys = runs(model, [(th, current.effects + ((name, z),)) for z, th in zs])
+            pts = sorted(((model.rss(y), z, th) for (z, th), y in zip(zs, ys, strict=True)),
+                         key=lambda x: x[0])
             screened.append((pts[0][0], name, pts))   # (best RSS, name, points best first)
         screened.sort(key=lambda x: x[0])
         _say(self.progress, "screened: " + ", ".join(f"{nm} {1 - r / current.rss:+.0%}"
                                                        for r, nm, _ in screened[:4]))
-        out = []
-        for _, name, pts in screened[:self.refine_top]:
-            _say(self.progress, f"fitting {name}")
+        top = screened[:self.refine_top]
+        _say(self.progress, "fitting " + ", ".join(name for _, name, _ in top))
+
+        def fit_one(item: tuple[float, str, list[tuple[float, float, Any]]]) -> Any:
+            _, name, pts = item
             if name == "dead_time":
-                f = _fit_delay(model, current.effects, pts)
-            else:
-                _, z, theta = pts[0]
-                f = model.fit(theta, current.effects + ((name, z),))
-            out.append((name, f))
+                return _fit_delay(model, current.effects, pts)
+            _, z, theta = pts[0]
+            return model.fit(theta, current.effects + ((name, z),))
+
+        out = [(name, f) for (_, name, _), f in zip(top, each(model, fit_one, top),
+                                                     strict=True)]
         best = min((g.rss for _, g in out), default=math.inf)
         if PERIODIC in names and _rms(best, self.n_train) > SCAN_FLOOR * self.floor:
             f = fit_pair(model, current, self.progress)

@@ -33,6 +33,8 @@ PROBE = 1.0
 REFINE = 5
 #: dips of the scan fitted in full
 STARTS = 3
+#: wavenumbers whose probe simulations run at once
+CHUNK = 32
 
 
 def pair(wave: float, a: float, b: float) -> tuple[tuple[str, float], ...]:
@@ -50,16 +52,40 @@ def without_pair(effects: tuple[tuple[str, float], ...]) -> tuple[tuple[str, flo
     return tuple((n, v) for n, v in effects if not Term.is_key(n))
 
 
-def _explained(model: Any, current: Any, wave: float, r: Array, tr: Array
-               ) -> tuple[float, float, float]:
-    """(RSS left, sin and cos amplitude) of the linearised pair at ``wave`` on residual ``r``."""
-    y0 = current.y
+def each(model: Any, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
+    """``[fn(x) for x in items]`` through the model's own ``map`` when it has one (the
+    finger's runs independent simulations on every core, with the same results), else here
+    one by one."""
+    m = getattr(model, "map", None)
+    if m is not None:
+        return list(m(fn, items))
+    return [fn(x) for x in items]
+
+
+def runs(model: Any, jobs: list[tuple[Any, tuple[tuple[str, float], ...]]]) -> list[Array]:
+    """``model.run`` of every ``(theta, effects)`` job, in order (:func:`each`)."""
+    return each(model, lambda j: model.run(*j), jobs)
+
+
+def _explained(model: Any, current: Any, waves: list[float], r: Array, tr: Array
+               ) -> list[tuple[float, float, float]]:
+    """(RSS left, sin and cos amplitude) of the linearised pair at each of ``waves`` on
+    residual ``r`` (the probe simulations of all of them at once: :func:`runs`)."""
     probe = float(getattr(model, "ripple_probe", PROBE))
-    cols = []
-    for amp in ((probe, 0.0), (0.0, probe)):
-        y = model.run(current.theta, current.effects + pair(wave, *amp))
-        cols.append((y - y0)[tr] / probe)
-    s = np.column_stack(cols)
+    out = []
+    for k in range(0, len(waves), CHUNK):  # (a chunk's outputs held at once, not the scan's)
+        chunk = waves[k:k + CHUNK]
+        ys = runs(model, [(current.theta, current.effects + pair(w, *amp))
+                          for w in chunk for amp in ((probe, 0.0), (0.0, probe))])
+        out += [_regress(current.y, ys[2 * i], ys[2 * i + 1], probe, r, tr)
+                for i in range(len(chunk))]
+    return out
+
+
+def _regress(y0: Array, y_sin: Array, y_cos: Array, probe: float, r: Array, tr: Array
+             ) -> tuple[float, float, float]:
+    """(RSS left, sin and cos amplitude) of ``r`` regressed on the two probes' secants."""
+    s = np.column_stack([(y_sin - y0)[tr] / probe, (y_cos - y0)[tr] / probe])
     if not np.all(np.isfinite(s)):
         return np.inf, 0.0, 0.0
     c, *_ = np.linalg.lstsq(s, r, rcond=None)
@@ -88,14 +114,14 @@ def screen(model: Any, current: Any) -> list[tuple[float, float, float, float]]:
     r = (data.y[data.keep] - current.y)[tr]
     if not np.all(np.isfinite(r)):
         return []
-    coarse = [_explained(model, current, float(w), r, tr) for w in grid]
+    coarse = _explained(model, current, [float(w) for w in grid], r, tr)
     step = float(grid[1] - grid[0]) if len(grid) > 1 else 0.1 * float(grid[0])
     out = []
     for i in _local_minima([c[0] for c in coarse], STARTS):
+        fine = [float(w) for w in np.linspace(grid[i] - step / 2, grid[i] + step / 2, REFINE)
+                if w > 0 and w != grid[i]]
         cands = [(coarse[i], float(grid[i]))]
-        cands += [(_explained(model, current, float(w), r, tr), float(w))
-                  for w in np.linspace(grid[i] - step / 2, grid[i] + step / 2, REFINE)
-                  if w > 0 and w != grid[i]]
+        cands += list(zip(_explained(model, current, fine, r, tr), fine, strict=True))
         (rss, a, b), w = min(cands, key=lambda x: x[0][0])
         out.append((w, a, b, rss))
     return sorted(out, key=lambda x: x[3])
@@ -108,12 +134,14 @@ def fit_pair(model: Any, current: Any, progress: Callable[[str], None] | None) -
     if progress is not None and waves is not None:
         progress(f"scanning {len(waves())} wavenumbers for a position-periodic force (two "
                  "simulations each)")
-    best = None
-    for w, a, b, rss in screen(model, current):
-        if progress is not None:
+    starts = screen(model, current)
+    if progress is not None:
+        for w, _, _, rss in starts:
             progress(f"screened: {PERIODIC} at {w:.4g} rad^-1 {1 - rss / current.rss:+.0%}; "
                      "fitting it")
-        f = model.fit(current.theta, current.effects + pair(w, a, b))
+    best = None
+    for f in each(model, lambda s: model.fit(current.theta, current.effects + pair(*s[:3])),
+                  starts):
         if best is None or f.rss < best.rss:
             best = f
     return best

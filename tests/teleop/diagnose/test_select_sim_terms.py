@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 
 import numpy as np
 import pytest
@@ -119,3 +120,28 @@ def test_no_scan_when_a_catalog_effect_already_leaves_the_floor(
     assert [c[0] for c in d.chosen] == ["sensor_offset"] and calls == []
     diagnose_dynamic(RippleModel(_data(1, A_TRUE)))
     assert calls
+
+
+@dataclass(frozen=True)
+class MappedModel(RippleModel):
+    """The ripple model with a ``map`` of its own that evaluates the jobs last first (as
+    threads may finish them) and counts them."""
+
+    calls: list[int] = dataclass_field(default_factory=list)
+
+    def map(self, fn, items):  # type: ignore[no-untyped-def]
+        self.calls.append(len(items))
+        done = {i: fn(x) for i, x in reversed(list(enumerate(items)))}
+        return [done[i] for i in range(len(items))]
+
+
+def test_a_model_with_its_own_map_gets_every_batch_through_it_and_the_same_answer() -> None:
+    """The engine hands independent simulations and fits to the model's ``map`` (the finger
+    runs them on every core); the answer must not depend on the order they are done in."""
+    data = _data(1, A_TRUE)
+    plain = diagnose_dynamic(RippleModel(data))
+    mapped_model = MappedModel(data)
+    mapped = diagnose_dynamic(mapped_model)
+    assert sum(mapped_model.calls) > 100  # the scan, the screening grids, the fits
+    assert mapped.chosen == plain.chosen and mapped.terms == plain.terms
+    assert mapped.final.rss == plain.final.rss
