@@ -2,14 +2,15 @@
 
 The same 1 kHz controller as :func:`sim.bench._finger_run` / :func:`sim.bench._hand_run` (a
 0.5 Hz sine of the joint set-point, a proportional correction on the measured proximal angle
-for the finger), stepping the compiled model (:func:`sim.compiled_step.advance`, the step the
-equivalence tests hold to the Python reference).  ``tests/sim/test_compiled_engine.py`` checks
-that these loops follow the Python benchmark's trajectory.
+for the finger), stepping the compiled model (:func:`sim.compiled_step.advance_in`, the step
+the equivalence tests hold to the Python reference, with one work array as the runs use it).
+``tests/sim/test_compiled_engine.py`` checks that these loops follow the Python benchmark's
+trajectory.
 
 Numba's disk cache keys on this file alone, not on the kernels it inlines: a change of the
 step or of the array layouts (:mod:`sim.compiled_kernel`; the dents of a yielding object moved
-the flexure angles to ``X_FLEX`` = 16, the shaft ripple made ``N_K`` 46) must touch this
-file too, or a stale cache runs.
+the flexure angles to ``X_FLEX`` = 16, the shaft ripple made ``N_K`` 46; the step's work array,
+``advance_in``) must touch this file too, or a stale cache runs.
 """
 
 from __future__ import annotations
@@ -21,9 +22,9 @@ import numpy as np
 from numba import njit
 
 from sim.compiled import hand_arrays, pack_effects, pack_object, pack_params, state_array
-from sim.compiled_kernel import X_PHI
+from sim.compiled_kernel import K_N, X_PHI
 from sim.compiled_runs import preshape_step
-from sim.compiled_step import advance
+from sim.compiled_step import advance_in
 from sim.contact import ContactObject
 from sim.finger import default_finger_params, initial_finger_state
 from sim.hand import default_hand_params
@@ -37,10 +38,11 @@ def finger_loop(steps: int, x: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: 
     """The finger benchmark's controller and physics, ``steps`` ticks, in place on ``x``."""
     w = 2.0 * math.pi * 0.5
     c = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
+    work = np.empty((5, int(k[K_N])))  # advance_in's work array
     for i in range(steps):
         sp = 0.7 - 0.7 * math.cos(w * i * dt)
         c[1] = JOINT_RATIO * (sp + 0.2 * (sp - x[X_PHI]))
-        advance(x, c, k, dsegs, o, e, dt, -1.0)
+        advance_in(x, c, k, dsegs, o, e, dt, -1.0, work)
 
 
 @njit(cache=True)
@@ -49,10 +51,11 @@ def hand_loop(steps: int, xs: np.ndarray, pre: np.ndarray, hp: np.ndarray, k: np
     """The hand benchmark (three fingers on one set-point, preshape at 0.3 rad)."""
     w = 2.0 * math.pi * 0.5
     c = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
+    work = np.empty((5, int(k[K_N])))  # advance_in's work array
     for i in range(steps):
         c[1] = JOINT_RATIO * (0.7 - 0.7 * math.cos(w * i * dt))
         for f in range(xs.shape[0]):
-            advance(xs[f], c, k, dsegs, o, e, dt, -1.0)
+            advance_in(xs[f], c, k, dsegs, o, e, dt, -1.0, work)
         pre[1], pre[2] = preshape_step(pre[1], pre[2], 0.3, hp, dt)
         pre[0] = pre[0] + dt
 

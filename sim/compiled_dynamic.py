@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from sim.compiled_kernel import K_UPN, X_PHI, X_REF, X_T, X_TEN, X_TH, X_VM
-from sim.compiled_step import advance
+from sim.compiled_kernel import K_N, K_UPN, X_PHI, X_REF, X_T, X_TEN, X_TH, X_VM
+from sim.compiled_step import advance_in
 
 if TYPE_CHECKING:
     from sim.finger_dynamic import DynamicData
@@ -35,9 +35,10 @@ _HOLD = np.array([0.0, 0.0, 0.0, 0.0, 1.0])  # sim.motor.HOLD_ZERO
 @njit(cache=True)
 def _run(x: np.ndarray, cmd: np.ndarray, steps: int, dt: float, k: np.ndarray,
          dsegs: np.ndarray, o: np.ndarray, e: np.ndarray, delay: float, line: np.ndarray,
-         due: np.ndarray, queued: np.ndarray, ends: np.ndarray) -> None:
-    """``steps`` steps under ``cmd``.  Delay line: ``line`` = [active (5), last (5), has
-    last]; pending commands ``queued[j]`` due at ``due[j]`` for j in ``ends`` = [head, tail]."""
+         due: np.ndarray, queued: np.ndarray, ends: np.ndarray, w: np.ndarray) -> None:
+    """``steps`` steps under ``cmd`` (``w``: the step's work array).  Delay line: ``line`` =
+    [active (5), last (5), has last]; pending commands ``queued[j]`` due at ``due[j]`` for j
+    in ``ends`` = [head, tail]."""
     for _ in range(steps):
         if delay <= 0.0:
             line[0:5] = cmd
@@ -56,13 +57,13 @@ def _run(x: np.ndarray, cmd: np.ndarray, steps: int, dt: float, k: np.ndarray,
                 ends[0] += 1
         line[5:10] = cmd
         line[10] = 1.0
-        advance(x, line[0:5], k, dsegs, o, e, dt, -1.0)
+        advance_in(x, line[0:5], k, dsegs, o, e, dt, -1.0, w)
 
 
 @njit(cache=True)
 def _hold(x: np.ndarray, settle: np.ndarray, goal: float, effort: float, offset: float,
           per_unit: float, steps: int, dt: float, k: np.ndarray, dsegs: np.ndarray,
-          o: np.ndarray, e: np.ndarray, line: np.ndarray) -> None:
+          o: np.ndarray, e: np.ndarray, line: np.ndarray, w: np.ndarray) -> None:
     """The finger at the measured motor angle (``finger_dynamic._settled``): the shaft held
     at ``goal - offset`` while the finger and tendon settle on it, the servo's goal kept at
     ``goal + per_unit x`` the effort that holds the shaft against the tendon; then the goal
@@ -73,7 +74,7 @@ def _hold(x: np.ndarray, settle: np.ndarray, goal: float, effort: float, offset:
         settle[1] = goal + per_unit * k[K_UPN] * x[X_TEN]
         x[X_TH] = shaft
         x[X_VM] = 0.0
-        advance(x, settle, k, dsegs, o, e, dt, -1.0)
+        advance_in(x, settle, k, dsegs, o, e, dt, -1.0, w)
     if not math.isnan(effort):
         settle[1] = goal + per_unit * effort
     x[X_TH] = shaft
@@ -126,6 +127,7 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
     line[0:5] = _HOLD
     ends = np.zeros(2, dtype=np.int64)
     settle = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
+    w = np.empty((5, int(k[K_N])))  # advance_in's work array
     was_active = True
     for i in range(n_rows):
         if not active[i]:
@@ -135,7 +137,7 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
             x[:] = x0
             ends[0] = ends[1]
             _hold(x, settle, restart[i], effort[i], offset, per_unit, settle_steps, dt_s, k,
-                  dsegs, o, e, line)
+                  dsegs, o, e, line, w)
             if delay > 0.0 and i > 0:
                 _prime(x, t, rows, i, delay, line, due, queued, ends)
             was_active = True
@@ -144,7 +146,7 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
         if i + 1 < n_rows:
             span = t[i + 1] - t[i]
             _run(x, rows[i], nsub[i], span / nsub[i], k, dsegs, o, e, delay, line, due,
-                 queued, ends)
+                 queued, ends, w)
 
 
 def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: float,

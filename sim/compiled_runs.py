@@ -7,8 +7,8 @@ the benchmark's 1 kHz controller (``teleop bench sim``).  Same arithmetic as the
 reference, in the same order.
 
 Numba's disk cache keys on this file alone, not on the step it inlines: a change of the step
-or of the array layouts (the shaft ripple made ``N_K`` 46) must touch this file too, or a
-stale cache runs.
+or of the array layouts (the shaft ripple made ``N_K`` 46; the step's work array,
+``advance_in``) must touch this file too, or a stale cache runs.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from numba import njit
 from sim.compiled_crush import pad_dent, yield_pad_work
 from sim.compiled_kernel import (
     K_LD,
+    K_N,
     K_PADSTART,
     K_PO,
     K_PROX,
@@ -33,7 +34,7 @@ from sim.compiled_kernel import (
     mean_spring_force,
     pad_contact,
 )
-from sim.compiled_step import advance
+from sim.compiled_step import advance_in
 
 
 @njit(cache=True)
@@ -44,11 +45,12 @@ def run_finger(x: np.ndarray, cmds: np.ndarray, dts: np.ndarray, k: np.ndarray,
     ``out`` before step ``s`` where ``record[s]`` (``record`` has one more entry: the end).
     Returns the number of rows written."""
     r = 0
+    work = np.empty((5, int(k[K_N])))  # advance_in's work array
     for s in range(cmds.shape[0]):
         if record[s]:
             out[r, :] = x
             r += 1
-        advance(x, cmds[s], k, dsegs, o, e, dts[s], fixed_tension_n)
+        advance_in(x, cmds[s], k, dsegs, o, e, dts[s], fixed_tension_n, work)
     if record[cmds.shape[0]]:
         out[r, :] = x
         r += 1
@@ -155,12 +157,13 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
             (b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8],
              b[9]) = pad_depths(xs[i], k, objs[i])
     done = 0
+    work = np.empty((5, int(k[K_N])))  # advance_in's work array
     for _ in range(steps):
         if pre[0] + 0.5 * dt > t_end:
             break
         done += 1
         for i in range(nf):
-            advance(xs[i], cs[i], k, dsegs, objs[i], e, dt, -1.0)
+            advance_in(xs[i], cs[i], k, dsegs, objs[i], e, dt, -1.0, work)
         pre[1], pre[2] = preshape_step(pre[1], pre[2], pre_goal, hp, dt)
         pre[0] = pre[0] + dt
         if audit:

@@ -76,7 +76,16 @@ from sim.compiled_kernel import (
 @njit(cache=True)
 def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
             e: np.ndarray, dt: float, fixed_tension_n: float) -> None:
-    """One linearly implicit step of ``sim.finger._step``, in place on ``x``."""
+    """One linearly implicit step of ``sim.finger._step``, in place on ``x`` (a loop of steps
+    calls :func:`advance_in` with one work array: five allocations a step less)."""
+    advance_in(x, c, k, dsegs, o, e, dt, fixed_tension_n, np.empty((5, int(k[K_N]))))
+
+
+@njit(cache=True)
+def advance_in(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
+               e: np.ndarray, dt: float, fixed_tension_n: float, w: np.ndarray) -> None:
+    """:func:`advance` with ``w``, ``np.empty((5, n_flex))``, for the per-segment arrays it
+    writes before it reads them."""
     n = int(k[K_N])
     rm = k[K_RM]
     rb = k[K_RB]
@@ -114,8 +123,8 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
     v_phi = x[X_VPHI]
     flex = x[X_FLEX:X_FLEX + n]
     fvel = x[X_FLEX + n:X_FLEX + 2 * n]
-    jx = np.empty(n)
-    jy = np.empty(n)
+    jx = w[0]
+    jy = w[1]
     px_ = k[K_PROX]
     py_ = 0.0
     a = 0.0
@@ -147,7 +156,8 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
     if e[E_NONLIN] != 0.0:
         f_phi -= e[E_NONLIN] * rb * phi * phi * phi
         k_phi += max(0.0, 3.0 * e[E_NONLIN] * rb * phi * phi)
-    jns = np.zeros(n)
+    jns = w[2]
+    jns[:] = 0.0
     distal_touch = False
     fk = 0.0
     ke = 0.0
@@ -216,8 +226,8 @@ def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: n
     a_m = (m_m * v_m + dt * f_m) / d_m
     big_a = -rb * a_phi + rm * a_m
     big_b = dt * (rb * rb / d_phi + rm * rm / d_m)
-    b_fl = np.empty(n)
-    a_fl = np.empty(n)
+    b_fl = w[3]
+    a_fl = w[4]
     d_free = m_fl + dt * k[K_CSEG] + dt2 * kseg
     for i in range(n):
         gi = ux * (y2 - jy[i]) - uy * (x2 - jx[i])

@@ -6,8 +6,8 @@ rule (speeds below 1e-6 rad/s after 100 steps) as the reference, compiled.
 
 Numba's disk cache keys on this file alone, not on the kernels it inlines: a change of the
 step or of the array layouts (:mod:`sim.compiled_kernel`; the dents of a yielding object moved
-the flexure angles to ``X_FLEX`` = 16, the shaft ripple made ``N_K`` 46) must touch this
-file too, or a stale cache runs.
+the flexure angles to ``X_FLEX`` = 16, the shaft ripple made ``N_K`` 46; the step's work array,
+``advance_in``) must touch this file too, or a stale cache runs.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from sim.compiled_kernel import X_FLEX, X_PHI, X_VPHI
-from sim.compiled_step import advance
+from sim.compiled_kernel import K_N, X_FLEX, X_PHI, X_VPHI
+from sim.compiled_step import advance_in
 
 if TYPE_CHECKING:
     from sim.params import FingerParams
@@ -31,8 +31,9 @@ def release_until_still(x: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: np.n
     """Step ``x`` in place with ``force_n`` on the detached tendon until it is still."""
     hold = np.array([0.0, 0.0, 0.0, 0.0, 1.0])  # sim.motor.HOLD_ZERO, always in force here
     n = (x.shape[0] - X_FLEX) // 2
+    w = np.empty((5, int(k[K_N])))  # advance_in's work array
     for step in range(steps):
-        advance(x, hold, k, dsegs, o, e, dt, force_n)
+        advance_in(x, hold, k, dsegs, o, e, dt, force_n, w)
         if step > 100 and abs(x[X_VPHI]) < 1e-6:
             still = True
             for i in range(n):

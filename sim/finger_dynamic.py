@@ -303,6 +303,13 @@ class FingerDynamicModel:
         return float(np.ptp(y)) * (1.0 / self.data.out_scale
                                    if self.data.output == "motor_angle_rad" else JOINT_RATIO)
 
+    def ripple_position(self) -> Array:
+        """The measured shaft angle (rad) at the compared samples, where the ripple acts (a
+        proximal-angle output: times the joint ratio)."""
+        y = self.data.y[self.data.keep]
+        return (y * (1.0 / self.data.out_scale) if self.data.output == "motor_angle_rad"
+                else y * JOINT_RATIO)
+
     def ripple_waves(self) -> Array:
         """Wavenumbers (1/rad of shaft angle) the selection scans for a position-periodic
         shaft force (``sim.finger_ripple``), from the shaft angle range covered."""

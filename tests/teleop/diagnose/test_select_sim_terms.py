@@ -94,7 +94,7 @@ def test_the_scanned_wavenumber_counts_as_a_parameter() -> None:
 def test_the_scan_finds_the_true_wavenumber() -> None:
     m = RippleModel(_data(3, A_TRUE))
     nom = m.fit(m.nominal_start(), ())
-    w, a, b, rss = screen(m, nom)[0]
+    w, a, b, rss, _ = screen(m, nom)[0]
     assert abs(w - W_TRUE) < 0.05 * W_TRUE and rss < 0.2 * nom.rss
 
 
@@ -145,3 +145,71 @@ def test_a_model_with_its_own_map_gets_every_batch_through_it_and_the_same_answe
     assert sum(mapped_model.calls) > 100  # the scan, the screening grids, the fits
     assert mapped.chosen == plain.chosen and mapped.terms == plain.terms
     assert mapped.final.rss == plain.final.rss
+
+
+@dataclass(frozen=True)
+class WideModel(RippleModel):
+    """The ripple model scanning up to 100 (rad^-1 of its output) and telling the engine
+    where the pull acts (its measured output), so the periodogram start can be tried."""
+
+    def ripple_waves(self) -> np.ndarray:
+        span = float(np.ptp(self.data.y))
+        return np.arange(2 * math.pi * 1.5 / span, 100.0, math.pi / (4 * span))
+
+    def ripple_position(self) -> np.ndarray:
+        return self.data.y
+
+
+def _many_periods(w: float, a: float) -> Data:
+    rng = np.random.default_rng(3)
+    t = np.arange(600) * 0.01
+    u = np.repeat(rng.uniform(-1, 1, 30), 20)
+    y = rippled_lag(t, u, 0.21, a=a, b=0.3 * a, w=w)
+    return Data(t, u, y + rng.normal(0, NOISE, len(t)))
+
+
+def test_over_many_periods_a_periodogram_start_joins_the_probe_dips_and_the_fits_decide(
+        ) -> None:
+    """The lag's response to its pull is a transient, not a shifted rest, so here the
+    periodogram's dip is wrong (about 41) and the probes' is right: the periodogram start
+    must be one more start, never a replacement for the probes over many periods."""
+    data = _many_periods(60.0, 0.03)
+    model = WideModel(data)
+    assert float(np.ptp(data.y)) * 60.0 / (2 * math.pi) > 8.0  # many periods
+    nom = model.finish((0.21,), ())
+    starts = screen(model, nom)
+    assert [s[4] for s in starts].count("periodogram") == 1
+    assert sum(s[4] == "probes" for s in starts) == 3
+    d = diagnose_dynamic(model)
+    (ks, a), _ = d.terms
+    assert abs(Term.parse(ks).const - 60.0) < 0.01 * 60.0 and abs(a - 0.03) < 0.1 * 0.03
+
+
+def test_no_periodogram_start_when_the_range_holds_few_periods() -> None:
+    """Scanned only up to 5 periods over the range: the probes alone."""
+    @dataclass(frozen=True)
+    class Narrow(WideModel):
+        def ripple_waves(self) -> np.ndarray:
+            return super().ripple_waves()[:20]  # up to ~5 periods of the range
+
+    model = Narrow(_data(1, A_TRUE))
+    span = float(np.ptp(model.data.y))
+    assert max(model.ripple_waves()) * span / (2 * math.pi) < 8.0
+    starts = screen(model, model.finish((0.21,), ()))
+    assert starts and all(s[4] == "probes" for s in starts)
+    wide = WideModel(_data(1, A_TRUE))
+    assert "periodogram" in [s[4] for s in screen(wide, wide.finish((0.21,), ()))]
+
+
+def test_the_wavenumber_of_a_periodogram_start_is_polished_by_simulation() -> None:
+    """Over many periods a wavenumber a fraction of a scan step off drifts out of phase: the
+    polish moves it towards the truth and the fit improves."""
+    from teleop.diagnose.select_sim_terms import _polish_wave
+
+    model = WideModel(_many_periods(60.0, 0.03))
+    step = float(np.diff(model.ripple_waves())[0])
+    off = 60.0 - 0.6 * step
+    f = model.fit((0.21,), pair(off, 0.03, 0.009))
+    g = _polish_wave(model, f, off, step)
+    w = Term.parse(g.effects[0][0]).const
+    assert abs(w - 60.0) < 0.5 * abs(off - 60.0) and g.rss < f.rss
