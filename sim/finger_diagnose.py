@@ -205,10 +205,12 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
 
 def diagnose_finger(args: argparse.Namespace) -> int:
     """``teleop diagnose REC --model finger``: static weight recordings against the finger."""
+    from sim.parallel_runs import thread_count
     from teleop.commands.common import info, write_json
     from teleop.diagnose.generic import diagnose_model
     from teleop.recording import read_recording
 
+    thread_count()  # a bad TELEOP_THREADS stops here, before any work
     recs = [read_recording(p, allow_nan=True).skip(getattr(args, "skip", 0.0))
             for p in args.recordings]
     if len(recs) == 1 and (recs[0].meta_value("experiment") in DYNAMIC_EXPERIMENTS

@@ -81,3 +81,19 @@ def test_a_finger_diagnosis_is_the_same_on_one_thread_and_on_three(
         docs.append(json.loads(out.read_text()))
     assert docs[0] == docs[1]
     assert docs[0]["effects"]  # the fits ran (screening, candidates, the chosen effect's)
+
+
+def test_a_bad_thread_count_stops_the_finger_diagnosis_first(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+        ) -> None:
+    """Exit 2 and one line naming the variable, before any fitting starts."""
+    from teleop.cli import main
+
+    rec = tmp_path / "r.csv"
+    assert main(["sim", "force-blocks", "--duration", "2", "--rate-hz", "200", "--out",
+                 str(rec)]) == 0
+    capsys.readouterr()
+    monkeypatch.setenv("TELEOP_THREADS", "x")
+    assert main(["diagnose", str(rec), "--model", "finger"]) == 2
+    out = capsys.readouterr()
+    assert "TELEOP_THREADS" in out.err and "fitting" not in out.out + out.err
