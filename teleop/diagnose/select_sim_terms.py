@@ -13,7 +13,12 @@ amplitude typical of the physics; the other values held) is simulated at every w
 the residual regressed on the two.  That scan is rugged (a dip is a few grid steps wide, and
 the linearised pair ranks the dips only roughly), so its :data:`STARTS` lowest dips are each
 refined on a finer grid and fitted jointly with the refined parameters and the effects
-already chosen; the best fit is the candidate.
+already chosen; the best fit is the candidate.  Over many periods (:data:`MANY_PERIODS`) a
+periodogram of the residual against the measured position (``ripple_position()``) gives one
+more start, whose wavenumber is polished by simulation after its fit.
+
+Independent simulations and fits go through the model's ``map`` when it has one
+(:func:`each`; the finger runs them on every core, with the same results).
 """
 
 from __future__ import annotations
@@ -130,8 +135,8 @@ def screen(model: Any, current: Any) -> list[tuple[float, float, float, float, s
     steps wide, and the linearised pair ranks the dips only roughly), each refined; and, for
     a model with ``ripple_position()`` whose measured position range holds more than
     :data:`MANY_PERIODS` periods of some scanned wavenumbers, the lowest dip of the
-    periodogram over those, refined on a grid :data:`FINE` times finer (its amplitudes are
-    left to the fit)."""
+    periodogram over those, refined at :data:`FINE` points over half a step either side (its
+    amplitudes are left to the fit)."""
     waves = getattr(model, "ripple_waves", None)
     grid = np.asarray(waves() if waves is not None else (), float)
     if len(grid) == 0:
