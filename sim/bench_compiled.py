@@ -22,9 +22,9 @@ import numpy as np
 from numba import njit
 
 from sim.compiled import hand_arrays, pack_effects, pack_object, pack_params, state_array
-from sim.compiled_kernel import K_N, X_PHI
+from sim.compiled_kernel import X_PHI
 from sim.compiled_runs import preshape_step
-from sim.compiled_step import advance_in
+from sim.compiled_step import advance_in, work_array
 from sim.contact import ContactObject
 from sim.finger import default_finger_params, initial_finger_state
 from sim.hand import default_hand_params
@@ -38,7 +38,7 @@ def finger_loop(steps: int, x: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: 
     """The finger benchmark's controller and physics, ``steps`` ticks, in place on ``x``."""
     w = 2.0 * math.pi * 0.5
     c = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
-    work = np.empty((5, int(k[K_N])))  # advance_in's work array
+    work = work_array(k)
     for i in range(steps):
         sp = 0.7 - 0.7 * math.cos(w * i * dt)
         c[1] = JOINT_RATIO * (sp + 0.2 * (sp - x[X_PHI]))
@@ -51,7 +51,7 @@ def hand_loop(steps: int, xs: np.ndarray, pre: np.ndarray, hp: np.ndarray, k: np
     """The hand benchmark (three fingers on one set-point, preshape at 0.3 rad)."""
     w = 2.0 * math.pi * 0.5
     c = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
-    work = np.empty((5, int(k[K_N])))  # advance_in's work array
+    work = work_array(k)
     for i in range(steps):
         c[1] = JOINT_RATIO * (0.7 - 0.7 * math.cos(w * i * dt))
         for f in range(xs.shape[0]):

@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from sim.compiled_kernel import K_N, K_UPN, X_PHI, X_REF, X_T, X_TEN, X_TH, X_VM
-from sim.compiled_step import advance_in
+from sim.compiled_kernel import K_UPN, X_PHI, X_REF, X_T, X_TEN, X_TH, X_VM
+from sim.compiled_step import advance_in, work_array
 
 if TYPE_CHECKING:
     from sim.finger_dynamic import DynamicData
@@ -127,7 +127,7 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
     line[0:5] = _HOLD
     ends = np.zeros(2, dtype=np.int64)
     settle = np.array([0.0, 0.0, 0.0, 0.0, 1.0])
-    w = np.empty((5, int(k[K_N])))  # advance_in's work array
+    w = work_array(k)
     was_active = True
     for i in range(n_rows):
         if not active[i]:

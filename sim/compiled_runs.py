@@ -21,7 +21,6 @@ from numba import njit
 from sim.compiled_crush import pad_dent, yield_pad_work
 from sim.compiled_kernel import (
     K_LD,
-    K_N,
     K_PADSTART,
     K_PO,
     K_PROX,
@@ -34,7 +33,7 @@ from sim.compiled_kernel import (
     mean_spring_force,
     pad_contact,
 )
-from sim.compiled_step import advance_in
+from sim.compiled_step import advance_in, work_array
 
 
 @njit(cache=True)
@@ -45,7 +44,7 @@ def run_finger(x: np.ndarray, cmds: np.ndarray, dts: np.ndarray, k: np.ndarray,
     ``out`` before step ``s`` where ``record[s]`` (``record`` has one more entry: the end).
     Returns the number of rows written."""
     r = 0
-    work = np.empty((5, int(k[K_N])))  # advance_in's work array
+    work = work_array(k)
     for s in range(cmds.shape[0]):
         if record[s]:
             out[r, :] = x
@@ -157,7 +156,7 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
             (b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8],
              b[9]) = pad_depths(xs[i], k, objs[i])
     done = 0
-    work = np.empty((5, int(k[K_N])))  # advance_in's work array
+    work = work_array(k)
     for _ in range(steps):
         if pre[0] + 0.5 * dt > t_end:
             break

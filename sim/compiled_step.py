@@ -74,18 +74,25 @@ from sim.compiled_kernel import (
 
 
 @njit(cache=True)
+def work_array(k: np.ndarray) -> np.ndarray:
+    """The per-segment work arrays :func:`advance_in` writes before it reads them, for the
+    finger packed in ``k``: allocated once per run, not once per step."""
+    return np.empty((5, int(k[K_N])))
+
+
+@njit(cache=True)
 def advance(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
             e: np.ndarray, dt: float, fixed_tension_n: float) -> None:
     """One linearly implicit step of ``sim.finger._step``, in place on ``x`` (a loop of steps
-    calls :func:`advance_in` with one work array: five allocations a step less)."""
-    advance_in(x, c, k, dsegs, o, e, dt, fixed_tension_n, np.empty((5, int(k[K_N]))))
+    calls :func:`advance_in` with one :func:`work_array`: five allocations a step less)."""
+    advance_in(x, c, k, dsegs, o, e, dt, fixed_tension_n, work_array(k))
 
 
 @njit(cache=True)
 def advance_in(x: np.ndarray, c: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
                e: np.ndarray, dt: float, fixed_tension_n: float, w: np.ndarray) -> None:
-    """:func:`advance` with ``w``, ``np.empty((5, n_flex))``, for the per-segment arrays it
-    writes before it reads them."""
+    """:func:`advance` with ``w`` (:func:`work_array`) for the per-segment arrays it writes
+    before it reads them."""
     n = int(k[K_N])
     rm = k[K_RM]
     rb = k[K_RB]

@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from sim.compiled_kernel import K_N, X_FLEX, X_PHI, X_VPHI
-from sim.compiled_step import advance_in
+from sim.compiled_kernel import X_FLEX, X_PHI, X_VPHI
+from sim.compiled_step import advance_in, work_array
 
 if TYPE_CHECKING:
     from sim.params import FingerParams
@@ -31,7 +31,7 @@ def release_until_still(x: np.ndarray, k: np.ndarray, dsegs: np.ndarray, o: np.n
     """Step ``x`` in place with ``force_n`` on the detached tendon until it is still."""
     hold = np.array([0.0, 0.0, 0.0, 0.0, 1.0])  # sim.motor.HOLD_ZERO, always in force here
     n = (x.shape[0] - X_FLEX) // 2
-    w = np.empty((5, int(k[K_N])))  # advance_in's work array
+    w = work_array(k)
     for step in range(steps):
         advance_in(x, hold, k, dsegs, o, e, dt, force_n, w)
         if step > 100 and abs(x[X_VPHI]) < 1e-6:
