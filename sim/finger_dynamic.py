@@ -293,22 +293,24 @@ class FingerDynamicModel:
             vals[n] = min(max(vals[n], a), b)
         return replace(self.base, **vals)
 
+    def _shaft_per_output(self) -> float:
+        """Shaft rad per unit of the compared output (a proximal-angle output: the joint
+        ratio)."""
+        return (1.0 / self.data.out_scale if self.data.output == "motor_angle_rad"
+                else JOINT_RATIO)
+
     def shaft_span_rad(self) -> float:
-        """The shaft angle range the compared samples cover (a proximal-angle output: times
-        the joint ratio; NaN with fewer than two finite samples)."""
+        """The shaft angle range the compared samples cover (NaN with fewer than two finite
+        samples)."""
         y = self.data.y[self.data.keep]
         y = y[np.isfinite(y)]
         if len(y) < 2:
             return math.nan
-        return float(np.ptp(y)) * (1.0 / self.data.out_scale
-                                   if self.data.output == "motor_angle_rad" else JOINT_RATIO)
+        return float(np.ptp(y)) * self._shaft_per_output()
 
     def ripple_position(self) -> Array:
-        """The measured shaft angle (rad) at the compared samples, where the ripple acts (a
-        proximal-angle output: times the joint ratio)."""
-        y = self.data.y[self.data.keep]
-        return (y * (1.0 / self.data.out_scale) if self.data.output == "motor_angle_rad"
-                else y * JOINT_RATIO)
+        """The measured shaft angle (rad) at the compared samples, where the ripple acts."""
+        return self.data.y[self.data.keep] * self._shaft_per_output()
 
     def ripple_waves(self) -> Array:
         """Wavenumbers (1/rad of shaft angle) the selection scans for a position-periodic
@@ -329,12 +331,15 @@ class FingerDynamicModel:
             return np.full(len(self.data.keep), math.nan)
         return y
 
+    def _parallel(self) -> bool:
+        """Whether independent runs go on every core: the compiled engine releases the GIL,
+        the Python reference does not."""
+        return engine(self.engine_name).name == "compiled"
+
     def map(self, fn: Callable[[Any], Any], items: list[Any]) -> list[Any]:
         """``[fn(x) for x in items]`` for independent simulations (or fits): the compiled
         engine's on every core (``sim.parallel_runs``: the same results as one by one)."""
-        if engine(self.engine_name).name != "compiled":
-            return [fn(x) for x in items]
-        return pmap(fn, items)
+        return pmap(fn, items) if self._parallel() else [fn(x) for x in items]
 
     def rss(self, y: Array) -> float:
         """Residual sum of squares on the training samples (a failed simulation: infinite)."""
@@ -388,10 +393,9 @@ class FingerDynamicModel:
         # a delay acts in whole physics steps: difference it over two of them
         steps = np.array([1e-3] * k + [2.0 * self.dt_s if n == "dead_time" else 1e-3
                                        for n in names])
-        par = engine(self.engine_name).name == "compiled"  # the Jacobian's columns on every core
         res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=scale,
                                      max_nfev=max_nfev, diff_step=steps,
-                                     workers=pmap if par else None)
+                                     workers=pmap if self._parallel() else None)
         eff = tuple(zip(names, res.x[k:].tolist(), strict=True))
         return self.finish(tuple(res.x[:k].tolist()), eff)
 

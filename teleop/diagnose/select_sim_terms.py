@@ -194,8 +194,9 @@ def fit_pair(model: Any, current: Any, progress: Callable[[str], None] | None) -
     """The best of the screened pairs, each fitted jointly on top of ``current`` (None: no
     scan; the fit clips the screened amplitudes into its bounds)."""
     waves = getattr(model, "ripple_waves", None)
+    grid = np.asarray(waves() if waves is not None else (), float)
     if progress is not None and waves is not None:
-        progress(f"scanning {len(waves())} wavenumbers for a position-periodic force (two "
+        progress(f"scanning {len(grid)} wavenumbers for a position-periodic force (two "
                  "simulations each; a periodogram too over those the range holds more than "
                  f"{MANY_PERIODS:g} periods of)")
     starts = screen(model, current)
@@ -203,7 +204,7 @@ def fit_pair(model: Any, current: Any, progress: Callable[[str], None] | None) -
         for w, _, _, rss, how in starts:
             progress(f"screened: {PERIODIC} at {w:.4g} rad^-1 {1 - rss / current.rss:+.0%} "
                      f"({how}); fitting it")
-    step = _step(np.asarray(waves() if waves is not None else (), float))
+    step = _step(grid)
 
     def fit_start(s: tuple[float, float, float, float, str]) -> Any:
         f = model.fit(current.theta, current.effects + pair(*s[:3]))
