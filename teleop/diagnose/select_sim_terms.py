@@ -221,7 +221,9 @@ def fit_pair(model: Any, current: Any, progress: Callable[[str], None] | None) -
 
 
 def _step(grid: Array) -> float:
-    """The scan grid's step."""
+    """The scan grid's step (0 for an empty grid: nothing is scanned)."""
+    if len(grid) == 0:
+        return 0.0
     return float(grid[1] - grid[0]) if len(grid) > 1 else 0.1 * float(grid[0])
 
 

@@ -213,3 +213,16 @@ def test_the_wavenumber_of_a_periodogram_start_is_polished_by_simulation() -> No
     g = _polish_wave(model, f, off, step)
     w = Term.parse(g.effects[0][0]).const
     assert abs(w - 60.0) < 0.5 * abs(off - 60.0) and g.rss < f.rss
+
+
+def test_a_model_with_nothing_to_scan_is_diagnosed_without_a_term() -> None:
+    """A shaft that did not move gives no wavenumbers (``wave_grid`` of a zero span): the
+    diagnosis goes on without the term (it raised IndexError when the scan's step was taken
+    of the empty grid)."""
+    @dataclass(frozen=True)
+    class Still(RippleModel):
+        def ripple_waves(self) -> np.ndarray:
+            return np.zeros(0)
+
+    d = diagnose_dynamic(Still(_data(1, A_TRUE)))
+    assert d.terms == () and d.term_verdict is None
