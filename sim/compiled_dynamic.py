@@ -112,12 +112,13 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
                   has_restart: bool, dt_s: float,
                   settle_steps: int, k: np.ndarray, dsegs: np.ndarray, o: np.ndarray,
                   e: np.ndarray, delay: float, offset: float, per_unit: float,
-                  out: np.ndarray) -> None:
+                  lead: float, out: np.ndarray) -> None:
     """Motor and proximal angle (``out[i]``) at every active row, each row's command held for
-    ``nsub[i]`` steps over the span to the next row; after inactive rows a segment restarts
-    at the measured angle ``restart[i]`` and effort ``effort[i]`` (held ``settle_steps``:
-    :func:`_hold`; ``offset`` the sensor offset, ``per_unit`` the set-point per unit of
-    effort), with the commands of the last delay pending (:func:`_prime`)."""
+    ``nsub[i]`` steps over the span to the next row, the last ``lead`` share of them (rounded
+    as ``finger_dynamic.lead_steps``) under the next row's command; after inactive rows a
+    segment restarts at the measured angle ``restart[i]`` and effort ``effort[i]`` (held
+    ``settle_steps``: :func:`_hold`; ``offset`` the sensor offset, ``per_unit`` the set-point
+    per unit of effort), with the commands of the last delay pending (:func:`_prime`)."""
     n_rows = rows.shape[0]
     cap = int(nsub.sum()) + (settle_steps + 2) * n_rows + 1
     due = np.empty(cap)
@@ -145,7 +146,10 @@ def simulate_rows(x0: np.ndarray, t: np.ndarray, rows: np.ndarray, nsub: np.ndar
         out[i, 1] = x[X_PHI]
         if i + 1 < n_rows:
             span = t[i + 1] - t[i]
-            _run(x, rows[i], nsub[i], span / nsub[i], k, dsegs, o, e, delay, line, due,
+            late = min(nsub[i], max(0, int(math.floor(lead * nsub[i] + 0.5))))
+            _run(x, rows[i], nsub[i] - late, span / nsub[i], k, dsegs, o, e, delay, line,
+                 due, queued, ends, w)
+            _run(x, rows[i + 1], late, span / nsub[i], k, dsegs, o, e, delay, line, due,
                  queued, ends, w)
 
 
@@ -176,7 +180,7 @@ def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: 
                   active, restart, effort, goals is not None, float(dt_s), int(settle_s / dt_s), k,
                   dsegs, cp.pack_object(ContactObject(kind="none")), cp.pack_effects(eff),
                   float(cp.command_delay(p, eff)), float(eff.sensor_offset),
-                  goal_per_unit(p, eff), out)
+                  goal_per_unit(p, eff), float(data.input_lead), out)
     off = eff.sensor_offset
     if data.output == "motor_angle_rad":
         y = (out[:, 0] + off) * data.out_scale

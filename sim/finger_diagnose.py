@@ -111,6 +111,8 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
     lines.append("nominal fit (refined within +-tolerance): "
                  + ", ".join(f"{k}={v:.4g}" for k, v in zip(PARAMS_DYN, d.nominal.theta,
                                                             strict=True)))
+    if d.alignment:
+        lines.append(f"input alignment: {d.alignment}")
     if d.chosen:
         lines.append("missing physics (best first):")
         for i, ((name, val, gain), v) in enumerate(zip(d.chosen, d.verdicts, strict=True), 1):
@@ -157,6 +159,8 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
         "unexplained": d.warning,
         "unexplained_where": windows_json(d.unexplained_where),
         "note": data.note or None, "ambiguous": list(d.ambiguous),
+        # the share of a row's span before it that each recorded command acts from
+        "input_lead_share": getattr(getattr(d.model, "data", None), "input_lead", 0.0),
         # the axis path's key for terms outside the catalog
         "proposed": ([{**ProposedTerm(tuple(n for n, _ in d.terms),
                                       tuple(v for _, v in d.terms), tv.score,

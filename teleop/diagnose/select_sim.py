@@ -89,6 +89,8 @@ class DynamicDiagnosis:
     unexplained_where: tuple[Window, ...] = ()     # where the final residual stays over it
     terms: tuple[tuple[str, float], ...] = ()      # a position-periodic pair found (final)
     term_verdict: Verdict | None = None            # the rule's verdict on it
+    model: Any = None                              # the model selected on (aligned)
+    alignment: str | None = None                   # its input alignment, in words
 
 
 def _say(progress: Callable[[str], None] | None, msg: str) -> None:
@@ -274,6 +276,12 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
                    f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples, "
                    f"{len(te)} held out)")
     nominal = model.fit(nom0, ())
+    align = getattr(model, "aligned", None)  # the input's timing between rows (the finger)
+    if align is not None:  # (the held-out part informative as the path's rule has it)
+        model, nominal = align(nominal, floor_factor * floor)
+    alignment = getattr(model, "alignment", lambda: None)()
+    if alignment is not None:
+        _say(progress, f"input alignment: {alignment}")
     path = SimPath(model, refine_top, floor_factor, progress, nom0, floor, len(tr), len(te))
     cands = model.candidates()
     names = (*cands, *((PERIODIC,) if hasattr(model, "ripple_waves") else ()))
@@ -282,6 +290,9 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
     verdicts = []
     prev = nominal
     final_fit = sel.final
+    if align is not None:  # the effects found may move the input's timing back
+        model, final_fit = model.aligned(final_fit, floor_factor * floor)
+        alignment = model.alignment()
     final = dict(final_fit.effects)  # every value as it stands in the final (joint) model
     gone = {n for n, v in final.items() if n in cands and at_absent_value(n, v, cands[n][1])}
     terms: tuple[tuple[str, float], ...] = ()
@@ -309,7 +320,7 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
         warn += where_text(where)
     return DynamicDiagnosis(nominal, final_fit, tuple(chosen), tuple(path.screened), floor, ym,
                             tuple(verdicts), sel.rejected[:3], warn, sel.ranking, sel.ambiguous,
-                            where, terms, term_verdict)
+                            where, terms, term_verdict, model, alignment)
 
 
 #: an effect within this share of its fit range of the value meaning "absent" is absent

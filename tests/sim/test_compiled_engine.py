@@ -173,6 +173,31 @@ def test_diagnosis_simulation_matches_the_reference(exp: str) -> None:
 
 
 @pytest.mark.parametrize("exp", ["force-blocks", "position"])
+def test_an_input_lead_matches_the_reference(exp: str) -> None:
+    """``DynamicData.input_lead`` (the next row's command over the last part of each row: a
+    logged, sampled set-point) on both engines, with a dead time's delay line and an
+    excluded stretch: the same to 1e-9 rad, and it moves the finger (earlier)."""
+    from sim.finger_dynamic import dynamic_data, simulate_dynamic
+
+    p = default_finger_params()
+    rec = run_experiment(ExperimentSpec(exp, duration_s=10.0, rate_hz=100.0), p,
+                         ContactObject(), EffectSet()).recording
+    data = dynamic_data(rec, "motor_angle_rad")
+    active = np.ones(len(data.t_s), dtype=bool)
+    active[400:450] = False
+    cut = replace(data, active=active, restart_goal_rad=np.full(len(data.t_s), 0.5))
+    for d in (data, cut):
+        for lead in (0.3, 1.0):
+            for eff in (EffectSet(), EffectSet(dead_time=0.03)):
+                a, b = (simulate_dynamic(p, eff, replace(d, input_lead=lead), 2e-3, e)
+                        for e in ENGINES)
+                assert np.array_equal(np.isnan(a), np.isnan(b))
+                assert np.nanmax(np.abs(a - b)) <= TOL_RAD
+                held = simulate_dynamic(p, eff, d, 2e-3, "compiled")
+                assert np.nanmax(np.abs(b - held)) > 1e-5
+
+
+@pytest.mark.parametrize("exp", ["force-blocks", "position"])
 def test_a_shaft_ripple_matches_the_reference(exp: str) -> None:
     """The position-periodic shaft force (``shaft_ripple_*``, what ``teleop diagnose`` fits for
     cogging) on both engines: the same to 1e-9 rad, and it moves the finger."""
