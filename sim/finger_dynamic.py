@@ -7,7 +7,7 @@ simulated ``motor_angle_rad`` (or ``proximal_angle_rad``) is compared with the m
 
 A recording that logs a sampled set-point (its changes fall between rows) gets the next row's
 command over the last part of each row (``DynamicData.input_lead``, fitted under the selection's
-rule: :meth:`FingerDynamicModel.aligned`).
+rule: :meth:`FingerDynamicModel.lead_fits`).
 
 Speed: the physics runs at ``dt_s`` (default 2 ms, twice the recording's 1 ms; the difference
 it makes is measured once and counted as a model-error floor) and the fit compares every
@@ -86,7 +86,7 @@ class DynamicData:
     #: share of each row's span, at its end, over which the next row's command already acts
     #: (a logged, sampled signal: a change between two rows shows only at the later one;
     #: 0: each command holds until the next row, as ``teleop sim`` at 1 kHz logs them);
-    #: chosen by :meth:`FingerDynamicModel.aligned`; a segment restarting after excluded
+    #: chosen among :meth:`FingerDynamicModel.lead_fits`; a segment restarting after excluded
     #: rows primes its delay line at the rows' own times
     input_lead: float = 0.0
 
@@ -139,7 +139,7 @@ def lead_steps(lead: float, n: int) -> int:
     return min(n, max(0, int(math.floor(lead * n + 0.5))))
 
 
-#: :meth:`FingerDynamicModel.aligned` fits leads of ``j / LEADS`` of a row at most (finer
+#: :meth:`FingerDynamicModel.lead_fits` fits leads of ``j / LEADS`` of a row at most (finer
 #: when a row holds fewer physics steps)
 LEADS = 4
 
@@ -353,48 +353,33 @@ class FingerDynamicModel:
             return np.full(len(self.data.keep), math.nan)
         return y
 
-    def aligned(self, fit: Fit, informative_rms: float = 0.0
-                ) -> tuple[FingerDynamicModel, Fit]:
-        """The recording's input alignment (``DynamicData.input_lead``) for ``fit``'s effects.
+    def lead_fits(self, fit: Fit) -> list[tuple[FingerDynamicModel, Fit]]:
+        """The model at no input lead and at each lead ``j / m`` of a row, each fitted from
+        ``fit``'s values (``fit`` itself at this model's own lead); empty for rows no coarser
+        than the physics step (at 1 kHz a change's misplacement is under the step).
 
         A recording that logs a sampled set-point shows a step that came between two rows
         only at the later one, so held row by row the simulated servo starts up to a row
         late: at a 100 Hz recording's 10 ms and a saturated servo's 3-4 rad/s, 30 mrad
         (independent finger batch, truth parameters: 7.7 mrad rms against 2.4 with the best
-        lead).  The model is fitted from ``fit``'s values at the leads ``j / m`` of a row
-        (``m`` the physics steps per row, at most :data:`LEADS`; ``j < m``: a whole row early
-        is a recording one row late, not a sampled one) and at none; a lead is a fitted
-        parameter like any effect, so the selection's rule (:meth:`_lead_kept`; held-out rms
-        at most ``informative_rms`` without a lead: the held-out part cannot confirm it, it
-        must only not make it worse) must keep it over none, and the kept one of the lowest
-        training RSS is returned with its fit; else the model at no lead and its fit.  A lead
-        only moves a command earlier, within its row; a later one is a ``dead_time``, which
-        the catalog tests on its own.  Rows no coarser than the physics step get none (at 1
-        kHz the misplacement is under the step)."""
+        lead).  ``m`` is the physics steps per row, at most :data:`LEADS`; ``j < m``: a whole
+        row early is a recording one row late, not a sampled one.  A lead only moves a
+        command earlier, within its row; a later one is a ``dead_time``, which the catalog
+        tests on its own.  Which lead, if any, is the selection's rule's to say
+        (``teleop.diagnose.select_sim.aligned``): a lead is a fitted parameter like any
+        effect."""
         t = np.asarray(self.data.t_s, float)
         if len(t) < 2 or not math.isfinite(fit.rss):
-            return self, fit
+            return []
         m = min(int(np.max(np.maximum(1, np.round(np.diff(t) / self.dt_s)))), LEADS)
         if m < 2:
-            return self, fit
-        models = [replace(self, data=replace(self.data, input_lead=j / m)) for j in range(m)]
-        fits = self.map(lambda mo: (fit if mo.data.input_lead == self.data.input_lead
-                                    else mo.fit(fit.theta, fit.effects)), models)
-        kept = [j for j in range(1, m) if self._lead_kept(fits[0], fits[j], informative_rms)]
-        j = min(kept, key=lambda i: fits[i].rss) if kept else 0
-        return (self, fit) if fits[j] is fit else (models[j], fits[j])
-
-    def _lead_kept(self, zero: Fit, lead: Fit, informative_rms: float = 0.0) -> bool:
-        """Whether the rule (``teleop.diagnose.criterion.judge``: penalised likelihood with
-        the effective sample size, held-out gain; the held-out part informative when no
-        lead leaves it over ``informative_rms``) keeps a lead's fit over no lead's."""
-        from teleop.diagnose.criterion import judge
-
-        n_test = len(self.data.split()[1])
-        gain = (1.0 - lead.rss_test / zero.rss_test
-                if n_test and math.isfinite(zero.rss_test) and zero.rss_test > 0 else math.nan)
-        informative = math.sqrt(zero.rss_test / n_test) > informative_rms if n_test else True
-        return judge(zero.rss, lead.rss, self.residual(lead), 1, gain, informative).accepted
+            return []
+        models = [self if j / m == self.data.input_lead
+                  else replace(self, data=replace(self.data, input_lead=j / m))
+                  for j in range(m)]
+        fits = self.map(lambda mo: fit if mo is self else mo.fit(fit.theta, fit.effects),
+                        models)
+        return list(zip(models, fits, strict=True))
 
     def alignment(self) -> str | None:
         """The input alignment in words (None: each command holds until the next row)."""

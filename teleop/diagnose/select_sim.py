@@ -37,7 +37,9 @@ Array = np.ndarray
 class SimulatedModel(Protocol):
     """What the selection needs of a model simulated against a recording.  A model may also
     have ``map(fn, items)``: the selection then hands it every batch of independent
-    simulations and fits (``select_sim_terms.each``; the finger runs them on every core)."""
+    simulations and fits (``select_sim_terms.each``; the finger runs them on every core);
+    and ``lead_fits(fit)`` with ``alignment()``: its input's timing between rows, which the
+    rule decides (:func:`aligned`)."""
 
     dt_s: float      # physics step (a dead time is polished in whole steps)
 
@@ -263,6 +265,46 @@ class SimPath:
         return out
 
 
+@dataclass(frozen=True, slots=True)
+class _LeadPath:
+    """The engine's view of an input lead (:func:`aligned`): one more fitted parameter on
+    top of the same fit, judged as a path's effects are."""
+
+    sim: SimPath
+
+    def rss(self, f: Any) -> float:
+        return self.sim.rss(f)
+
+    def residual(self, f: Any) -> Array:
+        return self.sim.residual(f)
+
+    def k_added(self, base: Any, f: Any) -> int:
+        return 1
+
+    def holdout(self, current: Any, name: str, f: Any) -> tuple[float, bool]:
+        return self.sim.holdout(current, name, f)
+
+
+def aligned(path: SimPath, fit: Any) -> tuple[SimulatedModel, Any]:
+    """The model at the input lead the rule keeps for ``fit``'s effects, and its fit.
+
+    A model that can say (``lead_fits(fit)``: the model at no lead and at each lead, each
+    fitted; the finger's ``sim.finger_dynamic``) has every lead judged against no lead by the
+    engine's rule (:func:`teleop.diagnose.engine.accept_first`: the penalised likelihood
+    with the effective sample size, then the held-out gain), best score first; none kept:
+    the model at no lead.  Any other model: ``path.model`` and ``fit``."""
+    lead_fits = getattr(path.model, "lead_fits", None)
+    cands = [] if lead_fits is None else lead_fits(fit)
+    if not cands:
+        return path.model, fit
+    rule = _LeadPath(path)
+    none = cands[0][1]
+    ranked = sorted(((engine.score(rule, none, f), str(i), f)
+                     for i, (_, f) in enumerate(cands[1:], 1)), key=lambda c: -c[0])
+    step, _ = engine.accept_first(rule, none, ranked)
+    return cands[0] if step is None else cands[int(step.name)]
+
+
 def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: int = 2,
                      floor_factor: float = 2.0, criterion: Criterion = DEFAULT,
                      progress: Callable[[str], None] | None = None) -> DynamicDiagnosis:
@@ -276,13 +318,15 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
                    f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples, "
                    f"{len(te)} held out)")
     nominal = model.fit(nom0, ())
-    align = getattr(model, "aligned", None)  # the input's timing between rows (the finger)
-    if align is not None:  # (the held-out part informative as the path's rule has it)
-        model, nominal = align(nominal, floor_factor * floor)
+
+    def path_of(m: SimulatedModel) -> SimPath:
+        return SimPath(m, refine_top, floor_factor, progress, nom0, floor, len(tr), len(te))
+
+    model, nominal = aligned(path_of(model), nominal)
     alignment = getattr(model, "alignment", lambda: None)()
     if alignment is not None:
         _say(progress, f"input alignment: {alignment}")
-    path = SimPath(model, refine_top, floor_factor, progress, nom0, floor, len(tr), len(te))
+    path = path_of(model)
     cands = model.candidates()
     names = (*cands, *((PERIODIC,) if hasattr(model, "ripple_waves") else ()))
     sel = engine.forward(path, nominal, names, max_effects, engine.Rule(criterion=criterion))
@@ -290,9 +334,9 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
     verdicts = []
     prev = nominal
     final_fit = sel.final
-    if align is not None:  # the effects found may move the input's timing back
-        model, final_fit = model.aligned(final_fit, floor_factor * floor)
-        alignment = model.alignment()
+    # the effects found may move the input's timing back
+    model, final_fit = aligned(path_of(model), final_fit)
+    alignment = getattr(model, "alignment", lambda: None)()
     final = dict(final_fit.effects)  # every value as it stands in the final (joint) model
     gone = {n for n, v in final.items() if n in cands and at_absent_value(n, v, cands[n][1])}
     terms: tuple[tuple[str, float], ...] = ()
