@@ -72,6 +72,22 @@ def test_sweep_classifies_and_bisects() -> None:
     assert "measured/predicted" in table and "direct" in table
 
 
+def test_the_table_says_when_no_run_at_loss_0_measured_the_largest_stable_delay() -> None:
+    """A sweep without loss 0 measures no largest stable delay: the table says so, and
+    keeps "unstable at every delay" for a controller that was (it read "unstable at every
+    delay" for both controllers of a `--losses 0.05` sweep whose every run was stable)."""
+    lossy = run_delay_sweep(TeleopConfig(), [0.0, 0.02], [0.2], ["two-layer", "direct"],
+                            duration_s=2.0, runner=fake_runner)
+    assert all(r.metrics.stable for r in lossy.runs)
+    lines = format_table(lossy).splitlines()
+    for c in ("two-layer", "direct"):
+        line = next(x for x in lines if x.startswith(f"  {c} "))
+        assert "not measured (no run at loss 0)" in line, line
+    unstable = run_delay_sweep(TeleopConfig(), [0.05, 0.1], [0.0], ["direct"],
+                               duration_s=2.0, runner=fake_runner)
+    assert "direct     measured unstable at every delay" in format_table(unstable)
+
+
 def test_max_stable_delay_needs_all_below_stable() -> None:
     res = run_delay_sweep(TeleopConfig(), [0.0, 0.01, 0.2], [0.0], ["direct"],
                           duration_s=2.0, runner=fake_runner)

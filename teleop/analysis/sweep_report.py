@@ -63,8 +63,9 @@ def format_table(result: SweepResult) -> str:
     lines.append("")
     lines.append("largest stable one-way delay (loss 0):")
     for c in dict.fromkeys(r.point.controller for r in result.runs):
-        lo, hi = brackets.get(c, (math.nan, math.nan))
-        meas = ("unstable at every delay" if math.isnan(lo) else
+        lo, hi = brackets.get(c, (math.nan, math.inf))  # (nan, inf): no run at loss 0
+        meas = ("not measured (no run at loss 0)" if math.isnan(lo) and math.isinf(hi) else
+                "unstable at every delay" if math.isnan(lo) else
                 f"> {lo:.4f} s (stable at every delay swept)" if math.isinf(hi) else
                 f"{lo:.4f} s (unstable at {hi:.4f} s)")
         line = f"  {c:<10} measured {meas}"
