@@ -65,10 +65,10 @@ def format_table(result: SweepResult) -> str:
     for c in dict.fromkeys(r.point.controller for r in result.runs):
         lo, hi = brackets.get(c, (math.nan, math.inf))  # (nan, inf): no run at loss 0
         meas = ("not measured (no run at loss 0)" if math.isnan(lo) and math.isinf(hi) else
-                "unstable at every delay" if math.isnan(lo) else
-                f"> {lo:.4f} s (stable at every delay swept)" if math.isinf(hi) else
-                f"{lo:.4f} s (unstable at {hi:.4f} s)")
-        line = f"  {c:<10} measured {meas}"
+                "measured unstable at every delay" if math.isnan(lo) else
+                f"measured > {lo:.4f} s (stable at every delay swept)" if math.isinf(hi) else
+                f"measured {lo:.4f} s (unstable at {hi:.4f} s)")
+        line = f"  {c:<10} {meas}"
         if c in pred:
             line += f"; predicted (linearised loop) {pred[c]:.4f} s"
             if math.isfinite(hi) and not math.isnan(lo) and pred[c] > 0:
