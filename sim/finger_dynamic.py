@@ -134,8 +134,8 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
 
 
 def lead_steps(lead: float, n: int) -> int:
-    """Of a row's ``n`` physics steps, how many run the next row's command at ``input_lead``
-    ``lead`` (both engines round the same way)."""
+    """How many of a row's ``n`` physics steps run under the next row's command at the input
+    lead ``lead`` (``DynamicData.input_lead``; the compiled engine rounds the same way)."""
     return min(n, max(0, int(math.floor(lead * n + 0.5))))
 
 

@@ -195,7 +195,7 @@ def test_a_held_command_recording_keeps_its_own_timing(exp: str, rate_hz: float)
     changes on a row (every row at 1 kHz; the force step at 1.0 s at 100 Hz): no lead is
     taken.  (At 100 Hz the position protocol's sine changes between rows, and a lead is
     found there.)  That the rule, not the lowest RSS alone, decides a lead is held by
-    ``test_finger_diagnose.py``'s concealed backlash: a lead absorbs part of it."""
+    :func:`test_a_lead_the_held_out_part_does_not_confirm_is_not_kept`."""
     from sim.contact import ContactObject
     from sim.experiments import ExperimentSpec, run_experiment
     from sim.finger_dynamic import FingerDynamicModel, dynamic_data
