@@ -161,13 +161,13 @@ def simulate_compiled(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: 
     from sim import compiled as cp
     from sim.contact import ContactObject
     from sim.finger import initial_finger_state
-    from sim.finger_dynamic import goal_per_unit
+    from sim.finger_dynamic import goal_per_unit, row_steps
 
     t = np.asarray(data.t_s, dtype=np.float64)
     n = len(t)
     nsub = np.ones(n, dtype=np.int64)
     if n > 1:
-        nsub[:-1] = np.maximum(1, np.round(np.diff(t) / dt_s)).astype(np.int64)
+        nsub[:-1] = row_steps(t, dt_s)
     active = (np.ones(n, dtype=np.bool_) if data.active is None
               else np.asarray(data.active, dtype=np.bool_))
     goals = data.restart_goal_rad

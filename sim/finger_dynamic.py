@@ -133,6 +133,12 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
                        np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
 
 
+def row_steps(t_s: Array, dt_s: float) -> Array:
+    """Physics steps over each row's span to the next (at least one), as both engines take
+    them."""
+    return np.maximum(1, np.round(np.diff(t_s) / dt_s)).astype(np.int64)
+
+
 def lead_steps(lead: float, n: int) -> int:
     """How many of a row's ``n`` physics steps run under the next row's command at the input
     lead ``lead`` (``DynamicData.input_lead``; the compiled engine rounds the same way)."""
@@ -217,6 +223,7 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
     state = initial_finger_state(p)
     t = data.t_s
     out = np.full(len(t), math.nan)
+    steps = row_steps(t, dt_s)
     motor = data.output == "motor_angle_rad"
     active = data.active
     was_active = True
@@ -237,7 +244,7 @@ def simulate_dynamic(p: FingerParams, eff: EffectSet, data: DynamicData, dt_s: f
             data.out_scale if motor else 1.0)
         if i + 1 < len(t):
             span = t[i + 1] - t[i]
-            n = max(1, int(round(span / dt_s)))
+            n = int(steps[i])
             early = n - lead_steps(data.input_lead, n)
             for j in range(n):
                 state = finger_step(state, cmd if j < early else data.commands[i + 1], p, obj,
@@ -371,7 +378,7 @@ class FingerDynamicModel:
         t = np.asarray(self.data.t_s, float)
         if len(t) < 2 or not math.isfinite(fit.rss):
             return []
-        m = min(int(np.max(np.maximum(1, np.round(np.diff(t) / self.dt_s)))), LEADS)
+        m = min(int(np.max(row_steps(t, self.dt_s))), LEADS)
         if m < 2:
             return []
         models = [self if j / m == self.data.input_lead

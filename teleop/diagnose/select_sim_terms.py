@@ -109,6 +109,12 @@ def _regress(y0: Array, y_sin: Array, y_cos: Array, probe: float, r: Array, tr: 
     s = np.column_stack([(y_sin - y0)[tr] / probe, (y_cos - y0)[tr] / probe])
     if not np.all(np.isfinite(s)):
         return np.inf, 0.0, 0.0
+    return _least_squares_pair(s, r)
+
+
+def _least_squares_pair(s: Array, r: Array) -> tuple[float, float, float]:
+    """(RSS left, first and second coefficient) of ``r`` regressed on the two columns
+    ``s``."""
     c, *_ = np.linalg.lstsq(s, r, rcond=None)
     return float(np.sum((r - s @ c) ** 2)), float(c[0]), float(c[1])
 
@@ -124,12 +130,8 @@ def _local_minima(vals: list[float], k: int) -> list[int]:
 def _periodogram(r: Array, x: Array, waves: list[float]) -> list[tuple[float, float, float]]:
     """(RSS left, sin and cos coefficient) of ``r`` regressed on ``sin(w x)``, ``cos(w x)`` at
     each of ``waves`` (no simulation: the residual read against the measured position)."""
-    out = []
-    for w in waves:
-        s = np.column_stack([np.sin(w * x), np.cos(w * x)])
-        c, *_ = np.linalg.lstsq(s, r, rcond=None)
-        out.append((float(np.sum((r - s @ c) ** 2)), float(c[0]), float(c[1])))
-    return out
+    return [_least_squares_pair(np.column_stack([np.sin(w * x), np.cos(w * x)]), r)
+            for w in waves]
 
 
 def _sized(model: Any, current: Any, wave: float, c_sin: float, c_cos: float
