@@ -195,7 +195,8 @@ def diagnose_finger_dynamic(args: argparse.Namespace, rec: Recording) -> int:
     quiet = getattr(args, "json_path", None) is not None and str(args.json_path) == "-"
     d = diagnose_dynamic(model, progress=None if quiet else print_progress)
     ripple = split(d.terms)[1]
-    lines, doc = _dynamic_report(d, what, data, model.dt_s, ripple, model.shaft_span_rad())
+    lines, doc = _dynamic_report(d, what, data, model.physics_step_s(), ripple,
+                                 model.shaft_span_rad())
     out = getattr(args, "write_params", None)
     if out is not None:
         write_model(out, {**dict(zip(PARAMS_DYN, d.final.theta, strict=True)), **ripple},

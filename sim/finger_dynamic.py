@@ -9,9 +9,11 @@ A recording that logs a sampled set-point (its changes fall between rows) gets t
 command over the last part of each row (``DynamicData.input_lead``, fitted under the selection's
 rule: :meth:`FingerDynamicModel.lead_fits`).
 
-Speed: the physics runs at ``dt_s`` (default 2 ms, twice the recording's 1 ms; the difference
-it makes is measured once and counted as a model-error floor) and the fit compares every
-``every``-th sample.  Refined nominal parameters (within +-tolerance): the motor gain
+Speed: the physics runs at ``dt_s`` (default 2 ms), at least one step per recorded row (so
+rows finer than that, as ``teleop sim --rate 1000`` writes, are stepped one per row:
+:meth:`FingerDynamicModel.physics_step_s`); the difference from the recording's own physics step
+is measured once and counted as a model-error floor.  The fit compares every ``every``-th
+sample.  Refined nominal parameters (within +-tolerance): the motor gain
 (``units_per_n``), the motor's Coulomb friction (``motor_coulomb_units``), the base spring
 (``k_base_nm_per_rad``) and, within [0, 1] whatever the tolerance, the share of the motor's
 viscous friction that follows the speed law rather than the effort law
@@ -42,6 +44,7 @@ from sim.finger import (
 from sim.finger_ripple import AMPLITUDE_BOUNDS_N, split, wave_grid
 from sim.parallel_runs import pmap
 from sim.params import JOINT_RATIO, FingerParams
+from sim.recording_checks import enough_compared, finite_column, gap_rows
 from teleop.diagnose.library import Term
 from teleop.diagnose.residual import noise_std
 from teleop.effects import EffectSet
@@ -115,22 +118,24 @@ def dynamic_data(rec: Recording, output: str, fit_rate_hz: float = 50.0) -> Dyna
         raise RecordingError(f"{rec.source}: --model finger needs a static weight table or a "
                              f"'# experiment:' of {', '.join(DYNAMIC_EXPERIMENTS)} (got {exp!r})")
     schedule = _schedule(ExperimentSpec(exp))
+    gap_rows(rec, split=False, can_split=False)
     t = rec.t_s
-    units = rec.column("motor_cmd_units")
-    sp = rec.column("setpoint_rad")
-    cmds = []
-    for ti, ui, si in zip(t.tolist(), units.tolist(), sp.tolist(), strict=True):
-        mode = schedule(ti)[0].mode
-        cmds.append(MotorCommand("force", force_units=ui) if mode == "force"
-                    else MotorCommand("position", goal_rad=JOINT_RATIO * si))
+    force = np.array([schedule(ti)[0].mode == "force" for ti in t.tolist()], bool)
+    units = finite_column(rec, "motor_cmd_units", force)
+    sp = finite_column(rec, "setpoint_rad", ~force)
+    y = finite_column(rec, output)
+    cmds = [MotorCommand("force", force_units=ui) if fi
+            else MotorCommand("position", goal_rad=JOINT_RATIO * si)
+            for fi, ui, si in zip(force.tolist(), units.tolist(), sp.tolist(), strict=True)]
     dt_rec = float(np.median(np.diff(t)))
     every = max(1, int(round(1.0 / (fit_rate_hz * dt_rec))))
+    keep = np.arange(0, len(t), every)
+    enough_compared(rec, len(keep), f"samples compared (at the fit's {fit_rate_hz:g} Hz)")
     try:
         phys = float(rec.meta_value("physics_dt_s") or 0.1 * dt_rec)
     except ValueError:
         phys = 0.1 * dt_rec
-    return DynamicData(t, tuple(cmds), rec.column(output), output,
-                       np.arange(0, len(t), every), min(max(phys, 1e-4), dt_rec))
+    return DynamicData(t, tuple(cmds), y, output, keep, min(max(phys, 1e-4), dt_rec))
 
 
 def row_steps(t_s: Array, dt_s: float) -> Array:
@@ -314,6 +319,14 @@ class FingerDynamicModel:
         d = d[np.isfinite(d)]
         step_err = float(np.sqrt(np.mean(d ** 2))) if len(d) else 0.0
         return math.hypot(noise_std(self.data.y[self.data.keep]), step_err), step_err
+
+    def physics_step_s(self) -> float:
+        """The step the physics takes on this recording's rows (the median): ``dt_s``, or a
+        row's span where rows are finer than ``dt_s`` (one step per row: :func:`row_steps`)."""
+        t = np.asarray(self.data.t_s, float)
+        if len(t) < 2:
+            return self.dt_s
+        return float(np.median(np.diff(t) / row_steps(t, self.dt_s)))
 
     def params(self, theta: Array | tuple[float, ...]) -> FingerParams:
         """Finger parameters with the refined ones set (each inside its absolute bounds)."""

@@ -34,14 +34,13 @@ import numpy as np
 from sim.finger import MotorCommand
 from sim.finger_dynamic import DynamicData
 from sim.params import JOINT_RATIO
+from sim.recording_checks import MIN_COMPARED, finite_column, gap_rows
 from teleop.devices.dynamixel_hand import BACKOFF_RAD
 from teleop.errors import RecordingError
 from teleop.recording import Recording
 
 TRAVEL_RAD = 3.6           # joint travel the hand clamps set-points to (hand.dynamixel default)
 SETTLE_ROWS_S = 0.15       # not compared after a restart
-MAX_GAP_FACTOR = 10.0      # a step this many median steps long is a gap
-MIN_COMPARED = 40
 START_OPEN_RAD = 0.01      # a first motor angle beyond this: the recording starts mid-motion
 
 
@@ -55,29 +54,7 @@ def _col(rec: Recording, name: str, finger: int) -> np.ndarray:
     if not rec.has(name):
         raise RecordingError(f"{rec.source}: no column {name!r} for --finger {finger} (a hand "
                              "recording has fingers 1, 2 and 3)")
-    v = rec.column(name)
-    bad = ~np.isfinite(v)
-    if bad.any():
-        raise RecordingError(f"{rec.source}: column {name!r} is not finite at data row "
-                             f"{int(np.argmax(bad)) + 1}")
-    return v
-
-
-def _gaps(rec: Recording, split: bool) -> np.ndarray:
-    """Rows after which the recording has a gap (a stalled hand tick, e.g. bus retries):
-    refused in one line unless ``split``, when the simulation restarts after each."""
-    t = rec.t_s
-    if len(t) < 3:
-        raise RecordingError(f"{rec.source}: {len(t)} rows is too short to diagnose")
-    dts = np.diff(t)
-    med = float(np.median(dts))
-    gap = dts > MAX_GAP_FACTOR * med
-    if gap.any() and not split:
-        i = int(np.argmax(gap))
-        raise RecordingError(f"{rec.source}: column 't_s' has a gap of {dts[i]:.3g} s at data "
-                             f"row {i + 2} (median step {med:.3g} s); split the recording, "
-                             f"--skip {t[i + 1] - t[0]:.3g} past it, or --split-gaps")
-    return np.flatnonzero(gap)
+    return finite_column(rec, name)
 
 
 def _meta_float(rec: Recording, key: str) -> float:
@@ -167,7 +144,7 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
     if output not in ("motor_angle_rad", "proximal_angle_rad"):
         raise RecordingError(f"{rec.source}: --output must be motor_angle_rad or "
                              f"proximal_angle_rad for a hand recording (got {output!r})")
-    gaps = _gaps(rec, split_gaps)
+    gaps = gap_rows(rec, split_gaps)
     t = rec.t_s
     sp = _col(rec, f"setpoint_rad_f{finger}", finger)
     motor = _col(rec, f"motor_angle_rad_f{finger}", finger)

@@ -314,7 +314,8 @@ def diagnose_dynamic(model: SimulatedModel, refine_top: int = 3, max_effects: in
     tr, te = data.split()
     nom0 = model.nominal_start()
     floor, step_err = model.floor()
-    _say(progress, f"physics step {model.dt_s * 1e3:.1f} ms: error {step_err:.2g} rad; floor "
+    step_s = getattr(model, "physics_step_s", lambda: model.dt_s)()
+    _say(progress, f"physics step {step_s * 1e3:.1f} ms: error {step_err:.2g} rad; floor "
                    f"{floor:.2g} rad; fitting the nominal finger ({len(ym)} samples, "
                    f"{len(te)} held out)")
     nominal = model.fit(nom0, ())

@@ -60,12 +60,13 @@ def _write(path: Path, t: np.ndarray, y: np.ndarray) -> Path:
 
 NAMED = {"missing column": ("'theta_rad'",), "not increasing": ("t_s", "row"),
          "nan gap": ("'angle_rad'", "row 100"), "too short": ("'t_s'",),
-         "time gap": ("'t_s'", "row 1001")}
+         "time gap": ("'t_s'", "row 1001"), "input never moves": ("'u_nm'", "every row")}
 """What the one line must name (column, row) where the problem has them."""
 
 
 @pytest.mark.parametrize("problem", ["missing file", "missing column", "not increasing",
-                                     "nan gap", "too short", "flat", "bad nominal", "time gap"])
+                                     "nan gap", "too short", "flat", "bad nominal", "time gap",
+                                     "input never moves"])
 def test_bad_input_is_one_line_and_exit_2(problem: str, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     t = np.arange(2000) / 1000.0
@@ -95,6 +96,10 @@ def test_bad_input_is_one_line_and_exit_2(problem: str, tmp_path: Path,
     elif problem == "bad nominal":
         _write(path, t, y)
         args = ["--output", "angle_rad", "--nominal", "viscous,springiness"]
+    elif problem == "input never moves":  # (the equation-error path divided by its spread)
+        write_recording(path, Recording.from_columns({"t_s": t, "u_nm": np.zeros_like(t),
+                                                      "angle_rad": y}))
+        args = [*args, "--input", "u_nm"]
     code = main(["diagnose", str(path), *args])
     err = capsys.readouterr().err.strip()
     assert code == 2
