@@ -60,6 +60,22 @@ class FingerCase:
     value: float
     truth: FingerTruth
     trajectory: Trajectory
+    command: Callable[[float], Command] | None = None  # the protocol's command at time t
+    noise_rad: float = 0.0                              # the sensors' Gaussian noise, std
+
+
+def signature(c: FingerCase) -> float:
+    """How much the concealed effect itself shows in the motor angle, over the noise: the rms
+    difference between the case's true motor angle (plus any sensor offset) and the same truth
+    simulated under the same command without the effect, divided by the noise's std (0 for a
+    clean case).  The generator's own physics alone: whatever a diagnosis makes of the
+    recording, an effect whose signature is under the noise is not in the data to be found."""
+    if c.concealed is None or c.command is None or not c.noise_rad > 0.0:
+        return 0.0
+    twin = simulate(c.command, DURATION_S, RATE_HZ, c.truth, Effects())
+    offset = c.value if c.concealed == "sensor_offset" else 0.0
+    d = c.trajectory.motor_rad + offset - twin.motor_rad
+    return float(np.sqrt(np.mean(d ** 2))) / c.noise_rad
 
 
 def _blocks(rng: np.random.Generator) -> list[tuple[float, float, float]]:
@@ -178,4 +194,4 @@ def make(concealed: str | None, seed: int, kind: str | None = None,
          "distal_angle_rad": tr.distal_rad, "motor_load_units": tr.tendon_n * p.units_per_n},
         (("experiment", EXPERIMENT[kind]), ("generator", "tests/sim/indep_finger.py"),
          ("seed", str(seed)), ("noise", "True")))
-    return FingerCase(rec, kind, concealed, value, p, tr)
+    return FingerCase(rec, kind, concealed, value, p, tr, command, sigma)

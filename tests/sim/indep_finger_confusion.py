@@ -10,7 +10,10 @@ force and the position protocol).  Prints one markdown table: per concealed clas
 was ranked first, named at all, what else was named (false discoveries), clean recordings called
 clean (no catalog effect and no term outside it named), out-of-catalog (cogging) recordings named
 as a catalog effect with confidence (no unexplained-residual warning), and where a
-position-periodic term (outside the catalog) was found.  Per-case lines go to stderr.
+position-periodic term (outside the catalog) was found; then the catalog cases ranked first per band
+of the concealed effect's own signature (``indep_finger.signature``: the truth with and without
+the effect under the same command, rms over the noise; the generator's physics alone), which
+says which misses had something in the recording to find.  Per-case lines go to stderr.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from sim.finger_dynamic import PARAMS, FingerDynamicModel, dynamic_data  # noqa: E402
 from sim.params import default_finger_params  # noqa: E402
 from teleop.diagnose.select_sim import diagnose_dynamic  # noqa: E402
-from tests.sim.indep_finger import CATALOG, make  # noqa: E402
+from tests.sim.indep_finger import CATALOG, make, signature  # noqa: E402
 
 CLASSES: tuple[str | None, ...] = (None, *CATALOG, "cogging")
 TOLERANCE = 0.2  # the CLI's default --tolerance
@@ -48,6 +51,7 @@ class Outcome:
     gap: float = 0.0       # the refined nominal finger's residual rms over the floor
     fraction: float = 0.0  # the final model's speed_law_fraction (motor friction law)
     term: bool = False     # a position-periodic term (outside the catalog) was found
+    signature: float = 0.0  # the concealed effect's own rms in the motor angle / noise std
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -64,7 +68,8 @@ def run_case(concealed: str | None, seed: int, law: str = "speed") -> Outcome:
     gap = float(np.sqrt(d.nominal.rss / len(model.data.split()[0]))) / d.floor_rad
     frac = dict(zip(PARAMS, d.final.theta, strict=True)).get("speed_law_fraction", 0.0)
     return Outcome(concealed, seed, c.kind, c.value, tuple((n, v) for n, v, _ in d.chosen),
-                   d.warning is not None, tuple(d.ambiguous), gap, float(frac), bool(d.terms))
+                   d.warning is not None, tuple(d.ambiguous), gap, float(frac), bool(d.terms),
+                   signature(c))
 
 
 def batch(per_class: int, seed: int, law: str = "speed") -> list[Outcome]:
@@ -142,6 +147,27 @@ def floors(out: list[Outcome]) -> str:
     return "; ".join(parts)
 
 
+#: signature bands (the concealed effect's own rms / noise std: ``indep_finger.signature``)
+BANDS = ((0.0, 1.0), (1.0, 3.0), (3.0, 10.0), (10.0, float("inf")))
+
+
+def by_signature(out: list[Outcome]) -> str:
+    """Catalog effects ranked first per signature band: what the recordings hold to be found
+    (the generator's physics alone), against what the diagnosis found."""
+    rows = ["| signature (effect rms / noise) | catalog cases | ranked first | classes (first / n) |",
+            "|---|---|---|---|"]
+    for lo, hi in BANDS:
+        cs = [o for o in out if o.concealed not in (None, "cogging") and lo <= o.signature < hi]
+        if not cs:
+            continue
+        first = [o for o in cs if o.named and o.names[0] == o.concealed]
+        per = Counter(o.concealed for o in cs)
+        hit = Counter(o.concealed for o in first)
+        cls = ", ".join(f"{n} {hit[n]}/{k}" for n, k in sorted(per.items()))
+        rows.append(f"| {lo:g}-{hi:g} | {len(cs)} | **{len(first)}/{len(cs)}** | {cls} |")
+    return "\n".join(rows)
+
+
 def main(argv: list[str]) -> int:
     pos = [a for a in argv if not a.startswith("--")]
     law = argv[argv.index("--law") + 1] if "--law" in argv else "speed"
@@ -154,10 +180,12 @@ def main(argv: list[str]) -> int:
         print(f"{o.concealed} seed {o.seed} ({o.kind}, value {o.value:.4g}): "
               f"{[(n, round(v, 4)) for n, v in o.named]} warning={o.warning} "
               f"gap={o.gap:.2f} fraction={o.fraction:.2f} term={o.term} "
+              f"signature={o.signature:.2f} "
               f"ambiguous={o.ambiguous}",
               file=sys.stderr)
     print(table(out))
     print(f"\nfloors: {floors(out)}")
+    print(f"\nby the effect's own signature in the recording:\n{by_signature(out)}")
     print(f"by input kind: {by_kind(out)}")
     print(f"clean recordings, nominal-fit residual rms / floor (the search starts above 2): "
           f"{clean_gap(out)}")

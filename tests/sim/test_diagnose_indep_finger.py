@@ -63,6 +63,19 @@ def test_concealed_effect_changes_the_recording() -> None:
     assert np.max(np.abs(a - b)) > 0.01
 
 
+def test_an_effects_signature_is_what_it_adds_to_the_motor_angle_over_the_noise() -> None:
+    """``signature``: 0 for a clean case; a sensor offset under force commands (which never
+    read the sensor) moves nothing but the reading, so its signature is exactly the offset
+    over the noise; a halved or doubled motor gain stands far out of the noise."""
+    from tests.sim.indep_finger import signature
+
+    assert signature(make(None, 700)) == 0.0
+    off = make("sensor_offset", 704)
+    assert off.kind == "force"
+    assert signature(off) == pytest.approx(abs(off.value) / off.noise_rad, rel=1e-9)
+    assert signature(make("actuator_gain", 706)) > 30.0
+
+
 def test_clean_and_strong_effects_on_independent_recordings() -> None:
     clean = run_case(None, 700)
     offset = run_case("sensor_offset", 704)
