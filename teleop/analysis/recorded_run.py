@@ -46,7 +46,10 @@ _ROLES = ("master", "hand", "controller")
 _FLAGS = (("master", "watchdog", "master force-command watchdog"),
           ("controller", "watchdog", "controller hand-state watchdog"),
           ("hand", "watchdog", "hand command watchdog"),
-          ("hand", "servo_safe", "hand held safe on servo error bits"))
+          ("hand", "servo_safe", "hand held safe on servo error bits"),
+          # the hand's passivity layer held a set-point back because its tank could not pay
+          # (a tank held at its floor reads above the empty line: this is where it shows)
+          ("hand", "limited", "hand set-point held back by its tank"))
 #: (role, column, what it means): counts of fingers flagged per tick, time with any reported
 _FINGER_FLAGS = (("hand", "yielding", "a finger's contact yielding"),
                  ("hand", "unseen_contact", "a finger stalled on a contact its cells miss"),

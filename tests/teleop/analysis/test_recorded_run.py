@@ -50,6 +50,7 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
         hand[f"distal_angle_rad_f{f}"] = np.where(holding, 0.4, 0.0)
     hand["tank_j"] = np.full_like(th, 9.0)
     hand["watchdog"] = ((th >= 8.0) & (th < 8.2)).astype(float)
+    hand["limited"] = ((th >= 9.0) & (th < 10.5)).astype(float)
     write_recording(d / "hand.csv", Recording.from_columns(hand, (("role", "hand"),)))
     del k
 
@@ -89,6 +90,10 @@ def test_guard_time_is_measured(run_dir: Path) -> None:
     assert g["hand command watchdog"].first_at_s == pytest.approx(8.0)
     assert g["hand command watchdog"].spells == 1
     assert g["master force-command watchdog"].active_s == 0.0
+    # the hand's layer holding a set-point back: its tank at its floor (0.01 J) reads above
+    # the 5 mJ empty line, so the report says so here (a dynamixel run: 70 % of the time)
+    assert g["hand set-point held back by its tank"].active_s == pytest.approx(1.5, abs=0.03)
+    assert g["hand set-point held back by its tank"].first_at_s == pytest.approx(9.0)
 
 
 def test_cli_floor_and_json(run_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
