@@ -81,8 +81,6 @@ def _default_output(columns: tuple[str, ...], input_col: str | None) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the diagnosis and print/write the results."""
-    import numpy as np
-
     from teleop.diagnose.diagnose import DiagnoseOptions, diagnose
     from teleop.diagnose.fit import NUMERIC_FAILURES
     from teleop.diagnose.model import parse_nominal
@@ -109,13 +107,6 @@ def run(args: argparse.Namespace) -> int:
         r.column(output)
         if args.input_col:
             r.column(args.input_col)
-    if args.input_col:
-        u = np.concatenate([r.column(args.input_col) for r in recs])
-        u = u[np.isfinite(u)]
-        if len(u) and float(np.ptp(u)) == 0.0:
-            raise RecordingError(f"{args.recordings[0]}: column {args.input_col!r} is "
-                                 f"{float(u[0]):g} on every row: no input excites the model "
-                                 "(for free motion leave --input out)")
     nominal = parse_nominal(args.nominal, args.tolerance)
     opts = DiagnoseOptions(nominal, args.input_col, output, analysis=args.analysis)
     val = (read_recording(args.validate, allow_nan=True).skip(args.skip) if args.validate

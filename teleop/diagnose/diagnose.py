@@ -49,7 +49,7 @@ from teleop.diagnose.results import (
 from teleop.diagnose.select import OEPath
 from teleop.diagnose.validate import validate_ee, validate_oe
 from teleop.diagnose.windows import conditions, excess, locate_windows, moving_rms
-from teleop.errors import UserInputError
+from teleop.errors import RecordingError, UserInputError
 from teleop.recording import Recording
 
 OE_DRIFT_NRMSE = 0.7
@@ -78,6 +78,12 @@ def diagnose(recordings: Sequence[Recording], opts: DiagnoseOptions,
         raise UserInputError("no recording given")
     raw = [recording_signals(r, opts) for r in recordings]
     has_input = opts.input_col is not None
+    if has_input:  # the equation-error fit divides by the input's spread over them all
+        u_all = np.concatenate([u for _, u, _ in raw if u is not None])
+        if float(np.ptp(u_all)) == 0.0:
+            raise RecordingError(f"{recordings[0].source}: column {opts.input_col!r} is "
+                                 f"{float(u_all[0]):g} on every row: no input excites the "
+                                 "model (for free motion leave --input out)")
     nominal = opts.nominal
     fixed_inertia = nominal.value("inertia") or 1.0
     sigs = [ee_signals(t, y, u) for t, u, y in raw]
