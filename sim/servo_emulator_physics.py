@@ -146,11 +146,13 @@ class FingerServoPhysics:
     def __init__(self, homes_rad: Sequence[float], inversions: Sequence[int],
                  object_cfg: Any = None, effects: Any = None,
                  engine_name: str = "compiled") -> None:
+        from sim import audit
         from sim import finger as fm  # the physics helper's module
         from sim.engine import engine
         from teleop.effects import EffectSet
 
         self._fm = fm
+        self._audit = audit
         self._engine = engine(engine_name)
         self.params = fm.default_finger_params()
         self.obj = (fm.contact_object_from_config(object_cfg) if object_cfg is not None
@@ -167,6 +169,10 @@ class FingerServoPhysics:
         self.extra = [SimpleServo(homes_rad[i], inversions[i]) for i in range(self.n_fingers, n)]
         self._outs = [fm.finger_outputs(s, self.params, self.obj, self.effects)
                       for s in self.states]
+        #: per finger: work its pads did on the object so far (J; :mod:`sim.audit`), counted
+        #: while ``audit_on`` (tests set it; it costs the serving loop two pad readouts a step)
+        self.audit_on = False
+        self.object_work_j = [0.0] * self.n_fingers
         # compile (or load from numba's cache) now, not on the first step while serving
         self._engine.run_finger(self.states[0], [fm.MotorCommand()], [1e-3], self.params,
                                 self.obj, self.effects, [False, False])
@@ -181,9 +187,16 @@ class FingerServoPhysics:
                                   torque_limit=d.torque_limit if d.torque_on else 0.0)
             # one engine call for the batch (the compiled engine: ~8x less CPU than stepping
             # in Python, which a loaded machine could not keep up with in real time)
+            before = (self._audit.pad_depths(self.states[i], self.params, self.obj)
+                      if self.audit_on else None)
             self.states[i], _ = self._engine.run_finger(
                 self.states[i], [cmd] * steps, [dt_s] * steps, self.params, self.obj,
                 self.effects, [False] * (steps + 1))
+            if before is not None:  # the batch as one step: the elastic part is exact on its
+                # end depths, the damper's at the batch's mean rate
+                self.object_work_j[i] += self._audit.object_work_j(
+                    before, self._audit.pad_depths(self.states[i], self.params, self.obj),
+                    self.obj, dt_s * steps)
         self._outs = []  # computed when next sensed (finger_outputs is as costly as a step)
         for _ in range(steps):
             for servo, d in zip(self.extra, drives[self.n_fingers:], strict=True):
@@ -205,6 +218,11 @@ class FingerServoPhysics:
     def proximal_rad(self) -> tuple[float, ...]:
         """The fingers' true proximal angles (for tests; not on the servo bus)."""
         return tuple(o.proximal_rad for o in self._outputs())
+
+    def touching(self) -> tuple[bool, ...]:
+        """Per finger: does the model's finger touch the object now (for tests; the direct-USB
+        layout has no tactile cells)."""
+        return tuple(any(o.contact) for o in self._outputs())
 
 
 def build_physics(homes_rad: Sequence[float], inversions: Sequence[int], object_cfg: Any = None,
