@@ -44,12 +44,12 @@ from sim.finger import (
 from sim.finger_ripple import AMPLITUDE_BOUNDS_N, split, wave_grid
 from sim.parallel_runs import pmap
 from sim.params import JOINT_RATIO, FingerParams
-from sim.recording_checks import enough_compared, finite_column, gap_rows
 from teleop.diagnose.library import Term
 from teleop.diagnose.residual import noise_std
 from teleop.effects import EffectSet
 from teleop.errors import RecordingError
 from teleop.recording import Recording
+from teleop.recording_checks import enough_compared, finite_column, gap_rows
 
 Array = NDArray[np.float64]
 

@@ -34,10 +34,10 @@ import numpy as np
 from sim.finger import MotorCommand
 from sim.finger_dynamic import DynamicData
 from sim.params import JOINT_RATIO
-from sim.recording_checks import MIN_COMPARED, finite_column, gap_rows
 from teleop.devices.dynamixel_hand import BACKOFF_RAD
 from teleop.errors import RecordingError
 from teleop.recording import Recording
+from teleop.recording_checks import MIN_COMPARED, finite_column, gap_rows
 
 TRAVEL_RAD = 3.6           # joint travel the hand clamps set-points to (hand.dynamixel default)
 SETTLE_ROWS_S = 0.15       # not compared after a restart
@@ -144,7 +144,7 @@ def hand_finger_data(rec: Recording, finger: int, output: str = "motor_angle_rad
     if output not in ("motor_angle_rad", "proximal_angle_rad"):
         raise RecordingError(f"{rec.source}: --output must be motor_angle_rad or "
                              f"proximal_angle_rad for a hand recording (got {output!r})")
-    gaps = gap_rows(rec, split_gaps)
+    gaps = gap_rows(rec, split_gaps, can_split=True)
     t = rec.t_s
     sp = _col(rec, f"setpoint_rad_f{finger}", finger)
     motor = _col(rec, f"motor_angle_rad_f{finger}", finger)

@@ -10,32 +10,25 @@ from teleop.diagnose.fit import Segment
 from teleop.diagnose.results import DiagnoseOptions
 from teleop.errors import RecordingError
 from teleop.recording import Recording
+from teleop.recording_checks import finite_column, gap_rows
 
 MIN_SAMPLES = 200
 
 
 def recording_signals(rec: Recording, opts: DiagnoseOptions) -> tuple[Array, Array | None, Array]:
-    where = rec.source
-    y = rec.column(opts.output_col)
-    u = rec.column(opts.input_col) if opts.input_col else None
-    t = rec.t_s
-    for name, col in (("t_s", t), (opts.output_col, y)) + (
-            ((opts.input_col, u),) if u is not None else ()):
-        bad = ~np.isfinite(col)
-        if np.any(bad):
-            raise RecordingError(f"{where}: column {name!r} has a gap (missing or non-finite "
-                                 f"value) at data row {int(np.argmax(bad)) + 1}")
+    """Time, input (None: a free response) and output, refused in one line
+    (:mod:`teleop.recording_checks`) where a value is not a number, the recording is too
+    short, the output never moves or the time column has a gap."""
+    t = finite_column(rec, "t_s")
+    y = finite_column(rec, opts.output_col)
+    u = finite_column(rec, opts.input_col) if opts.input_col else None
     if len(t) < MIN_SAMPLES:
-        raise RecordingError(f"{where}: column 't_s' has {len(t)} data rows, too short to "
-                             f"diagnose (need at least {MIN_SAMPLES})")
+        raise RecordingError(f"{rec.source}: column 't_s' has {len(t)} data rows, too short "
+                             f"to diagnose (need at least {MIN_SAMPLES})")
     if float(np.std(y)) <= 0:
-        raise RecordingError(f"{where}: column {opts.output_col!r} never changes; nothing to fit")
-    dts = np.diff(t)
-    if np.max(dts) > 5 * np.median(dts):
-        i = int(np.argmax(dts))
-        raise RecordingError(f"{where}: column 't_s' has a sampling gap of {dts[i]:.3g} s at "
-                             f"data row {i + 2} (t={t[i + 1]:.6g} s; uneven sampling; split the "
-                             "recording)")
+        raise RecordingError(f"{rec.source}: column {opts.output_col!r} never changes; "
+                             "nothing to fit")
+    gap_rows(rec)  # refused: the axis path has no --split-gaps
     return t, u, y
 
 

@@ -1,8 +1,10 @@
-"""What the finger model refuses in a recording, in one line naming the file, column and row.
+"""What ``teleop diagnose`` refuses in a recording, in one line naming the file, column and row.
 
-Shared by the ``teleop sim`` dynamic recordings (:func:`sim.finger_dynamic.dynamic_data`) and the
-``teleop up --record`` hand recordings (:mod:`sim.finger_hand_rec`): a command or output that
-is not a number where it is used, a gap in the time column, too few samples to compare.
+One set of checks for every model path: the axis model
+(:func:`teleop.diagnose.axis_data.recording_signals`), the ``teleop sim`` finger recordings
+(:func:`sim.finger_dynamic.dynamic_data`) and the ``teleop up --record`` hand recordings
+(:mod:`sim.finger_hand_rec`): a command or output that is not a number where it is used, a
+gap in the time column, too few samples to compare.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ def finite_column(rec: Recording, name: str, used: np.ndarray | None = None) -> 
     return v
 
 
-def gap_rows(rec: Recording, split: bool, can_split: bool = True) -> np.ndarray:
+def gap_rows(rec: Recording, split: bool = False, can_split: bool = False) -> np.ndarray:
     """Rows after which the time column has a gap (a step over :data:`MAX_GAP_FACTOR` median
     steps: a stalled tick, a cut-out stretch): refused in one line unless ``split`` (the
     message offers ``--split-gaps`` where the caller ``can_split``)."""
