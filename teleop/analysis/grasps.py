@@ -78,6 +78,16 @@ class GraspSeries:
         vals = [g.closure_ratio for g in self.grasps if math.isfinite(g.closure_ratio)]
         return min(vals) if vals else math.nan
 
+    @property
+    def weakest(self) -> GraspStats | None:
+        """The grasp with the lowest peak pressure over the first's; by closure when the
+        pressures give no ratio (a hand without tactile cells reads zeros)."""
+        gs = self.grasps
+        if gs and all(math.isfinite(g.pressure_ratio) for g in gs):
+            return min(gs, key=lambda g: g.pressure_ratio)
+        finite = [g for g in gs if math.isfinite(g.closure_ratio)]
+        return min(finite, key=lambda g: g.closure_ratio) if finite else None
+
     def rows(self) -> list[dict[str, float]]:
         """JSON rows (nan left to the writer)."""
         return [{"grasp": g.index, "t_start_s": g.t_start_s, "t_end_s": g.t_end_s,
@@ -181,11 +191,16 @@ def format_grasps(series: GraspSeries, every: int = 1) -> str:
             f"{'felt_N':>7} {'f/f0':>6}")
     lines = [head]
     gs = series.grasps
-    weakest = min(gs, key=lambda g: g.pressure_ratio, default=None)
+    weakest = series.weakest
     for g in gs:
         if g.index % every and g is not weakest and g is not gs[-1]:
             continue
         lines.append(f"{g.index:5d} {g.t_start_s:7.1f} {g.peak_pressure:7.0f} "
-                     f"{g.pressure_ratio:6.2f} {g.closure_rad:8.3f} {g.closure_ratio:6.2f} "
-                     f"{g.felt_force_n:7.2f} {g.felt_ratio:6.2f}")
+                     f"{_cell(g.pressure_ratio)} {g.closure_rad:8.3f} "
+                     f"{_cell(g.closure_ratio)} {g.felt_force_n:7.2f} {_cell(g.felt_ratio)}")
     return "\n".join(lines)
+
+
+def _cell(v: float) -> str:
+    """A ratio column: ``-`` where there is none (nothing to compare with)."""
+    return f"{v:6.2f}" if math.isfinite(v) else f"{'-':>6}"

@@ -208,8 +208,10 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
     lines = [f"{r.source}: {r.duration_s:.0f} s, {len(g.grasps)} complete grasps "
              f"(trigger past {r.threshold_m * 1000:.2f} mm)"]
     if g.grasps:
-        lines.append(f"weakest over first: peak pressure {g.min_pressure_ratio:.2f}, closure "
-                     f"{g.min_closure_ratio:.2f}, felt force {g.min_felt_ratio:.2f}")
+        pressure = (f"peak pressure {g.min_pressure_ratio:.2f}"
+                    if math.isfinite(g.min_pressure_ratio) else "peak pressure - (none read)")
+        lines.append(f"weakest over first: {pressure}, closure {g.min_closure_ratio:.2f}, "
+                     f"felt force {g.min_felt_ratio:.2f}")
         lines.append(format_grasps(g, every))
     lines.append(f"energy stores while the trigger is closed (empty: below "
                  f"{r.floor_j * 1000:g} mJ):")

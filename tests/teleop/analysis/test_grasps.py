@@ -92,3 +92,16 @@ def test_held_max_keeps_a_hold_of_exactly_the_window_and_drops_a_shorter_one() -
     qh = np.where((hand >= 0.5) & (hand < 0.65), 1.0, 0.0)[:, None]
     assert held_max(hand, qh, 0.1) == pytest.approx(1.0)
     assert held_max(hand, qh, 0.2) == pytest.approx(0.0)
+
+
+def test_without_pressures_the_weakest_grasp_is_the_least_closed() -> None:
+    # a hand without tactile cells (the dynamixel layout) reads zero pressures: no pressure
+    # ratio, so the weakest grasp is found by closure, and the missing ratios print as '-'
+    x = trigger(T)
+    k = np.floor(T / 4.5)
+    q = np.column_stack([x * np.where(k == 4, 10, 30), x * 20, x * 10])
+    g = analyse_grasps(T, x, np.zeros((len(T), 27)), q, np.where(x > 0, 1.0, 0.0), 0.0025)
+    assert g.weakest is g.grasps[4] and g.min_closure_ratio == pytest.approx(2 / 3)
+    rows = format_grasps(g, every=10).splitlines()
+    assert [r.split()[0] for r in rows[1:]] == ["0", "4", "5"]  # first, weakest, last
+    assert rows[1].split()[3] == "-"
