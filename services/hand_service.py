@@ -73,7 +73,10 @@ def hand_control_params(cfg: TeleopConfig) -> tuple[ControlParams, str]:
     if p.hand_port == "object" and cfg.hand.backend in BACKENDS_WITHOUT_TACTILE:
         return replace(p, hand_port="servo"), (
             f"hand.backend={cfg.hand.backend} has no tactile sensors: the hand's passivity "
-            "layer pays the servo spring's energy (controller.ports.hand_port=servo)")
+            "layer pays the servo spring's energy (controller.ports.hand_port=servo), up to "
+            "the servo's torque limit per radian a finger closes while its load-estimated "
+            "contact flag is on; known to wear the grasps down within a few (README, the "
+            "dynamixel backend)")
     return p, ""
 
 

@@ -16,6 +16,7 @@ def test_a_hand_without_tactile_cells_falls_back_to_the_servo_layer() -> None:
     p, note = hand_control_params(load_config(None, ["hand.backend=dynamixel"]))
     assert p.hand_port == "servo"
     assert "no tactile sensors" in note and "hand_port=servo" in note
+    assert "wear the grasps down" in note  # the known limit is said where it starts
 
 
 def test_an_explicit_servo_layer_is_kept_without_a_note() -> None:
