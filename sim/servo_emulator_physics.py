@@ -170,7 +170,7 @@ class FingerServoPhysics:
         self._outs = [fm.finger_outputs(s, self.params, self.obj, self.effects)
                       for s in self.states]
         #: per finger: work its pads did on the object so far (J; :mod:`sim.audit`), counted
-        #: while ``audit_on`` (tests set it; it costs the serving loop two pad readouts a step)
+        #: while ``audit_on`` (tests set it; it costs two pad readouts per finger per batch)
         self.audit_on = False
         self.object_work_j = [0.0] * self.n_fingers
         # compile (or load from numba's cache) now, not on the first step while serving
@@ -192,8 +192,9 @@ class FingerServoPhysics:
             self.states[i], _ = self._engine.run_finger(
                 self.states[i], [cmd] * steps, [dt_s] * steps, self.params, self.obj,
                 self.effects, [False] * (steps + 1))
-            if before is not None:  # the batch as one step: the elastic part is exact on its
-                # end depths, the damper's at the batch's mean rate
+            if before is not None:  # the batch (at most a few ms) as one audit step: the
+                # elastic part from its end depths (exact at a constant engaged fraction), the
+                # damper's at the batch's mean rate; a touch made and lost inside it is missed
                 self.object_work_j[i] += self._audit.object_work_j(
                     before, self._audit.pad_depths(self.states[i], self.params, self.obj),
                     self.obj, dt_s * steps)
