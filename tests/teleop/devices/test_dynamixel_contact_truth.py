@@ -26,6 +26,7 @@ from sim.servo_emulator_pty import PtyServoEmulator, make_bus_emulator
 from teleop.config.hand import ObjectConfig
 from teleop.devices.dynamixel_hand import build_dynamixel_hand
 from teleop.messages import HandCommand, Header
+from teleop.recording import read_recording
 from tests.teleop.devices.test_dynamixel_hand import HOMES, config
 
 #: object work (J, all fingers, both closes) a sound estimate would leave unflagged
@@ -53,9 +54,9 @@ def ramp_profile(ramp_rad_s: float) -> Callable[[float], Goal]:
 def recorded_profile() -> Callable[[float], Goal]:
     """The set-points of four grasps as the two-layer hand sent them in a ``teleop up`` run
     (40 Hz rows, held between them); ``None`` after the last row."""
-    rows = [line.split(",") for line in SETPOINTS.read_text().splitlines()[3:]]
-    t = [float(r[0]) for r in rows]
-    y = [(float(r[1]), float(r[2]), float(r[3])) for r in rows]
+    rec = read_recording(SETPOINTS)
+    t = rec.t_s.tolist()
+    y = list(zip(*(rec.column(f"setpoint_rad_f{k}").tolist() for k in (1, 2, 3)), strict=True))
 
     def goal(t_s: float) -> Goal:
         if t_s > t[-1]:
