@@ -46,11 +46,18 @@ def test_every_grasp_of_the_live_run_is_found(report: dict[str, Any]) -> None:
 
 def test_every_live_grasp_holds_up_against_the_first(report: dict[str, Any]) -> None:
     """The loop must keep working: every grasp reaches 90 % of the first's peak pressure,
-    closure and felt force (issue 13's floor)."""
-    bad = [(g["grasp"], round(g["pressure_ratio"], 3), round(g["felt_ratio"], 3))
-           for g in report["grasps"]
-           if min(g["pressure_ratio"], g["felt_ratio"], g["closure_ratio"]) < 0.9]
-    assert not bad, f"weak grasps (index, pressure/first, felt/first): {bad}"
+    closure and felt force (issue 13's floor).  A grasp during which a service's recording
+    stopped for more than 0.25 s (the machine stalled that process: a stalled master's
+    operator script jumps ahead) is not judged; at most two may be."""
+    judged = [g for g in report["grasps"] if not g["interrupted"]]
+    bad = [(g["grasp"], round(g["t_start_s"], 2), round(g["t_end_s"], 2),
+            round(g["pressure_ratio"], 3), round(g["closure_ratio"], 3),
+            round(g["felt_ratio"], 3))
+           for g in judged if min(g["pressure_ratio"], g["felt_ratio"], g["closure_ratio"]) < 0.9]
+    context = f"run {report['duration_s']:.1f} s, recording gaps {report['gaps']}"
+    assert not bad, (f"weak grasps (index, start s, end s, pressure, closure, felt over the "
+                     f"first): {bad}; {context}")
+    assert len(report["grasps"]) - len(judged) <= 2, context
 
 
 def test_no_store_sits_empty_while_the_operator_squeezes(report: dict[str, Any]) -> None:

@@ -20,7 +20,7 @@ Example::
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -87,6 +87,16 @@ class GraspSeries:
             return min(gs, key=lambda g: g.pressure_ratio)
         finite = [g for g in gs if math.isfinite(g.closure_ratio)]
         return min(finite, key=lambda g: g.closure_ratio) if finite else None
+
+    def rebased(self, ref: int) -> GraspSeries:
+        """The same grasps with every ratio over grasp ``ref``'s (a position in
+        :attr:`grasps`): the reference when the first cannot be one."""
+        r = self.grasps[ref]
+        return GraspSeries(tuple(
+            replace(g, pressure_ratio=_ratio(g.peak_pressure, r.peak_pressure),
+                    closure_ratio=_ratio(g.closure_rad, r.closure_rad),
+                    felt_ratio=_ratio(g.felt_force_n, r.felt_force_n))
+            for g in self.grasps))
 
     def rows(self) -> list[dict[str, float]]:
         """JSON rows (nan left to the writer)."""
@@ -185,19 +195,23 @@ def curl_grasps(t_s: Array, trigger_m: Array, pressure: Array, proximal_rad: Arr
     return analyse_grasps(t_s, trigger_m, pressure, curl, displayed_force_n, threshold_m)
 
 
-def format_grasps(series: GraspSeries, every: int = 1) -> str:
-    """A per-grasp table (every ``every``-th grasp, and always the weakest and the last)."""
+def format_grasps(series: GraspSeries, every: int = 1,
+                  marked: frozenset[int] = frozenset()) -> str:
+    """A per-grasp table (every ``every``-th grasp, and always the weakest and the last);
+    grasps whose index is in ``marked`` (interrupted: not judged) are always shown, ending in
+    ``gap``, and are not the weakest."""
     head = (f"{'grasp':>5} {'t_s':>7} {'peak_p':>7} {'p/p0':>6} {'closure':>8} {'c/c0':>6} "
             f"{'felt_N':>7} {'f/f0':>6}")
     lines = [head]
     gs = series.grasps
-    weakest = series.weakest
+    weakest = GraspSeries(tuple(g for g in gs if g.index not in marked)).weakest
     for g in gs:
-        if g.index % every and g is not weakest and g is not gs[-1]:
+        if g.index % every and g is not weakest and g is not gs[-1] and g.index not in marked:
             continue
         lines.append(f"{g.index:5d} {g.t_start_s:7.1f} {g.peak_pressure:7.0f} "
                      f"{_cell(g.pressure_ratio)} {g.closure_rad:8.3f} "
-                     f"{_cell(g.closure_ratio)} {g.felt_force_n:7.2f} {_cell(g.felt_ratio)}")
+                     f"{_cell(g.closure_ratio)} {g.felt_force_n:7.2f} {_cell(g.felt_ratio)}"
+                     + ("  gap" if g.index in marked else ""))
     return "\n".join(lines)
 
 

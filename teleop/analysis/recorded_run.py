@@ -11,6 +11,11 @@ share the launcher's epoch):
   the grasp threshold (a closed trigger with an empty tank is a hand that ignores it);
 * which safety guards fired (watchdogs, servo-fault safe state, contact guards), for how long.
 
+A grasp during which a service's recording stops for more than :data:`GAP_S` (the process was
+stalled or starved: a stalled master's operator script jumps ahead, a stalled hand misses its
+samples) is *interrupted*: listed with the gap, not judged; when the first grasp is
+interrupted, the first uninterrupted one is the reference.
+
 Times are on the recordings' own clock (the launcher's epoch: the services start a few
 seconds after it).
 
@@ -35,11 +40,15 @@ from teleop.recording import Recording, read_recording
 
 Array = NDArray[np.float64]
 
-__all__ = ["RunRecordings", "EmptySpells", "GuardTime", "RecordedRunReport", "read_run_dir",
-           "judge_recorded_run", "format_recorded_run", "EMPTY_FLOOR_J"]
+__all__ = ["RunRecordings", "EmptySpells", "GuardTime", "RecordingGap", "RecordedRunReport",
+           "read_run_dir", "judge_recorded_run", "format_recorded_run", "EMPTY_FLOOR_J",
+           "GAP_S"]
 
 #: an energy store below this is empty (J)
 EMPTY_FLOOR_J = 0.005
+#: a service's recording silent longer than this (s) interrupts the grasps it overlaps: ten of
+#: the hand's 25 ms samples, far above the 5-40 ms stalls of a busy machine
+GAP_S = 0.25
 
 _ROLES = ("master", "hand", "controller")
 #: (role, column, what it means): 0/1 flags, time spent at 1 is reported
@@ -94,22 +103,53 @@ class GuardTime:
 
 
 @dataclass(frozen=True, slots=True)
+class RecordingGap:
+    """A stretch in which one service's recording has no sample (its process stalled)."""
+
+    role: str  # "master", "hand", "controller"
+    at_s: float  # the last sample before it
+    gap_s: float  # to the next sample
+
+    def overlaps(self, t_start_s: float, t_end_s: float) -> bool:
+        return self.at_s < t_end_s and self.at_s + self.gap_s > t_start_s
+
+
+@dataclass(frozen=True, slots=True)
 class RecordedRunReport:
     source: str
     duration_s: float
     threshold_m: float
     floor_j: float
-    grasps: GraspSeries
+    grasps: GraspSeries  # every complete grasp, over the reference (the first judged)
     empty: tuple[EmptySpells, ...]
     guards: tuple[GuardTime, ...]
+    gaps: tuple[RecordingGap, ...] = ()  # every one longer than gap_bound_s
+    gap_bound_s: float = GAP_S
+
+    def interrupted(self, index: int) -> bool:
+        """Whether a recording gap overlaps grasp ``index`` (it is then not judged)."""
+        g = self.grasps.grasps[index]
+        return any(x.overlaps(g.t_start_s, g.t_end_s) for x in self.gaps)
+
+    @property
+    def judged(self) -> GraspSeries:
+        """The grasps no recording gap interrupted."""
+        gs = self.grasps.grasps
+        return GraspSeries(tuple(g for k, g in enumerate(gs) if not self.interrupted(k)))
 
     def as_dict(self) -> dict[str, object]:
-        g = self.grasps
+        g = self.judged
+        rows = self.grasps.rows()
+        for k, row in enumerate(rows):
+            row["interrupted"] = self.interrupted(k)
         return {"source": self.source, "duration_s": self.duration_s,
                 "grasp_threshold_m": self.threshold_m, "empty_floor_j": self.floor_j,
-                "grasp_count": len(g.grasps), "min_pressure_ratio": g.min_pressure_ratio,
+                "grasp_count": len(rows), "judged_count": len(g.grasps),
+                "min_pressure_ratio": g.min_pressure_ratio,
                 "min_closure_ratio": g.min_closure_ratio, "min_felt_ratio": g.min_felt_ratio,
-                "grasps": g.rows(),
+                "grasps": rows,
+                "gap_bound_s": self.gap_bound_s,
+                "gaps": [{"role": x.role, "at_s": x.at_s, "gap_s": x.gap_s} for x in self.gaps],
                 "empty": [{"store": e.store, "closed_s": e.closed_s, "empty_s": e.empty_s,
                            "empty_fraction": e.empty_fraction, "spells": e.spells,
                            "longest_s": e.longest_s, "longest_at_s": e.longest_at_s,
@@ -170,9 +210,16 @@ def _empty(store: str, t: Array, level_j: Array, closed: NDArray[np.bool_],
                        float(level_j[seen].min()) if seen.any() else math.nan)
 
 
+def _gaps(role: str, rec: Recording, min_gap_s: float) -> list[RecordingGap]:
+    dt = np.diff(rec.t_s)
+    return [RecordingGap(role, float(rec.t_s[i]), float(dt[i]))
+            for i in np.flatnonzero(dt > min_gap_s)]
+
+
 def judge_recorded_run(run: RunRecordings, threshold_m: float,
-                       floor_j: float = EMPTY_FLOOR_J) -> RecordedRunReport:
-    """Every grasp against the first, the stores' empty spells and the guards of one run."""
+                       floor_j: float = EMPTY_FLOOR_J, gap_s: float = GAP_S) -> RecordedRunReport:
+    """Every grasp against the first judged, the stores' empty spells and the guards of one
+    run, and the recording gaps longer than ``gap_s``."""
     m, h, c = run.master, run.hand, run.controller
     t = m.t_s
     pressure = np.column_stack([_held(h, t, f"pressure_f{i // 9 + 1}_{i % 9}")
@@ -196,8 +243,13 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
         spans = _spans(rec.t_s, np.nan_to_num(rec.column(col)) > 0.5)
         guards.append(GuardTime(what, sum(s[1] for s in spans), len(spans),
                                 spans[0][0] if spans else math.nan))
+    gaps = tuple(x for role, rec in recs.items() if rec is not None
+                 for x in _gaps(role, rec, gap_s))
+    hit = [any(x.overlaps(g.t_start_s, g.t_end_s) for x in gaps) for g in grasps.grasps]
+    if hit and hit[0] and not all(hit):
+        grasps = grasps.rebased(hit.index(False))
     return RecordedRunReport(run.source, float(t[-1] - t[0]), threshold_m, floor_j, grasps,
-                             empty, tuple(guards))
+                             empty, tuple(guards), gaps, gap_s)
 
 
 def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
@@ -205,14 +257,26 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
     from teleop.analysis.grasps import format_grasps
 
     g = r.grasps
+    lost = [k for k in range(len(g.grasps)) if r.interrupted(k)]
     lines = [f"{r.source}: {r.duration_s:.0f} s, {len(g.grasps)} complete grasps "
-             f"(trigger past {r.threshold_m * 1000:.2f} mm)"]
+             f"(trigger past {r.threshold_m * 1000:.2f} mm)"
+             + (f", {len(lost)} interrupted by a recording gap, not judged" if lost else "")]
+    j = r.judged
+    if j.grasps:
+        ref = "first" if j.grasps[0] is g.grasps[0] else f"grasp {j.grasps[0].index}"
+        pressure = (f"peak pressure {j.min_pressure_ratio:.2f}"
+                    if math.isfinite(j.min_pressure_ratio) else "peak pressure - (none read)")
+        lines.append(f"weakest over {ref}: {pressure}, closure {j.min_closure_ratio:.2f}, "
+                     f"felt force {j.min_felt_ratio:.2f}")
     if g.grasps:
-        pressure = (f"peak pressure {g.min_pressure_ratio:.2f}"
-                    if math.isfinite(g.min_pressure_ratio) else "peak pressure - (none read)")
-        lines.append(f"weakest over first: {pressure}, closure {g.min_closure_ratio:.2f}, "
-                     f"felt force {g.min_felt_ratio:.2f}")
-        lines.append(format_grasps(g, every))
+        lines.append(format_grasps(g, every, marked=frozenset(lost)))
+    if r.gaps:
+        lines.append(f"recording gaps (a service silent longer than {r.gap_bound_s:g} s): "
+                     f"{len(r.gaps)}")
+        for x in r.gaps[:10]:
+            over = [k for k in lost if x.overlaps(g.grasps[k].t_start_s, g.grasps[k].t_end_s)]
+            lines.append(f"  {x.role:10s} {x.gap_s:6.2f} s after {x.at_s:.1f} s"
+                         + (f" (grasp {', '.join(map(str, over))})" if over else ""))
     lines.append(f"energy stores while the trigger is closed (empty: below "
                  f"{r.floor_j * 1000:g} mJ):")
     for e in r.empty:

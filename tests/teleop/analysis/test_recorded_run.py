@@ -1,6 +1,7 @@
 """``teleop grasps DIR``: a recorded run judged grasp by grasp, on recordings built here with
 known answers (a weak third grasp, an empty master tank while squeezing and another while the
-trigger is open, a watchdog trip); the live run is judged in tests/test_sweep_live_grasps.py."""
+trigger is open, a watchdog trip, a stalled master); the live run is judged in
+tests/test_sweep_live_grasps.py."""
 
 from __future__ import annotations
 
@@ -20,8 +21,10 @@ PEAKS = (600.0, 610.0, 300.0, 605.0)
 
 
 def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = None,
-               drop: str | None = None) -> None:
+               drop: str | None = None, master_gap: tuple[float, float] | None = None) -> None:
     t = np.arange(0.0, 20.0, 0.01) + 3.0  # services start after the launcher's epoch
+    if master_gap is not None:  # the master's process stalled: no rows in (a, b)
+        t = t[(t <= master_gap[0]) | (t >= master_gap[1])]
     phase = (t - 3.0) % 5.0
     closed = (phase >= 1.0) & (phase < 3.0)
     k = ((t - 3.0) // 5.0).astype(int)
@@ -109,6 +112,42 @@ def test_cli_floor_and_json(run_dir: Path, capsys: pytest.CaptureFixture[str]) -
     d = json.loads(capsys.readouterr().out)
     assert d["grasp_count"] == 4 and d["min_pressure_ratio"] == pytest.approx(0.5)
     assert d["grasp_threshold_m"] == THRESHOLD_M
+
+
+def test_a_grasp_a_recording_gap_interrupts_is_listed_not_judged(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A stalled master (its rows stop for 0.6 s inside the weak third grasp, closed over
+    [14, 16) s) makes that grasp unjudgeable: listed with the gap, left out of the weakest and
+    of ``--floor``; a 0.1 s stall interrupts nothing."""
+    _write_run(tmp_path, master_gap=(14.5, 15.1))
+    r = judge_recorded_run(read_run_dir(tmp_path), THRESHOLD_M)
+    assert len(r.grasps.grasps) == 4 and [x.role for x in r.gaps] == ["master"]
+    assert r.gaps[0].gap_s == pytest.approx(0.6, abs=0.011)
+    assert [r.interrupted(k) for k in range(4)] == [False, False, True, False]
+    assert [g.index for g in r.judged.grasps] == [0, 1, 3]
+    assert r.judged.min_pressure_ratio == pytest.approx(1.0)
+    assert main(["grasps", str(tmp_path), "--floor", "0.9"]) == 0
+    out = capsys.readouterr().out
+    assert "1 interrupted by a recording gap" in out and "master" in out
+    assert [ln for ln in out.splitlines() if ln.endswith("  gap")][0].split()[0] == "2"
+    assert main(["grasps", str(tmp_path), "--json", "-"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert [g["interrupted"] for g in d["grasps"]] == [False, False, True, False]
+    assert d["judged_count"] == 3 and d["gaps"][0]["role"] == "master"
+    short = tmp_path / "short"
+    short.mkdir()
+    _write_run(short, master_gap=(14.5, 14.6))
+    r = judge_recorded_run(read_run_dir(short), THRESHOLD_M)
+    assert not r.gaps and r.judged.min_pressure_ratio == pytest.approx(0.5)
+
+
+def test_an_interrupted_first_grasp_hands_the_reference_on(tmp_path: Path) -> None:
+    """Grasp 0 (closed over [4, 6) s) interrupted: the ratios are over grasp 1 (peak 610)."""
+    _write_run(tmp_path, master_gap=(4.5, 5.5))
+    r = judge_recorded_run(read_run_dir(tmp_path), THRESHOLD_M)
+    assert [g.index for g in r.judged.grasps] == [1, 2, 3]
+    np.testing.assert_allclose([g.pressure_ratio for g in r.judged.grasps],
+                               np.array(PEAKS[1:]) / PEAKS[1])
 
 
 def test_threshold_from_the_recording_or_the_option(run_dir: Path) -> None:
