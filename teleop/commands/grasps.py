@@ -81,9 +81,13 @@ def run(args: argparse.Namespace) -> int:
     weak = [x.index for x in g.grasps
             if min(x.pressure_ratio, x.closure_ratio, x.felt_ratio) < args.floor]
     starved = [e.store for e in report.empty if e.longest_s > args.max_empty_s]
-    if not g.grasps or weak or starved:
-        info(args, f"FAIL: {len(weak)} grasps below {args.floor:g} of the first "
-             f"{weak[:10]}; stores empty longer than {args.max_empty_s:g} s: {starved}"
-             if g.grasps else "FAIL: no complete grasp without a recording gap")
+    if not g.grasps:
+        info(args, "FAIL: no complete grasp without a recording gap")
+        return 1
+    if weak or starved:
+        k = g.grasps[0].index
+        ref = "the first" if k == 0 else f"grasp {k} (the first without a recording gap)"
+        info(args, f"FAIL: {len(weak)} grasps below {args.floor:g} of {ref} {weak[:10]}; "
+             f"stores empty longer than {args.max_empty_s:g} s: {starved}")
         return 1
     return 0

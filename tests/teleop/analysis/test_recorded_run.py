@@ -141,13 +141,18 @@ def test_a_grasp_a_recording_gap_interrupts_is_listed_not_judged(
     assert not r.gaps and r.judged.min_pressure_ratio == pytest.approx(0.5)
 
 
-def test_an_interrupted_first_grasp_hands_the_reference_on(tmp_path: Path) -> None:
+def test_an_interrupted_first_grasp_hands_the_reference_on(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """Grasp 0 (closed over [4, 6) s) interrupted: the ratios are over grasp 1 (peak 610)."""
     _write_run(tmp_path, master_gap=(4.5, 5.5))
     r = judge_recorded_run(read_run_dir(tmp_path), THRESHOLD_M)
     assert [g.index for g in r.judged.grasps] == [1, 2, 3]
     np.testing.assert_allclose([g.pressure_ratio for g in r.judged.grasps],
                                np.array(PEAKS[1:]) / PEAKS[1])
+    assert main(["grasps", str(tmp_path), "--floor", "0.9"]) == 1  # the weak third grasp
+    out = capsys.readouterr().out
+    assert "weakest over grasp 1:" in out
+    assert "FAIL: 1 grasps below 0.9 of grasp 1 (the first without a recording gap) [2]" in out
 
 
 def test_threshold_from_the_recording_or_the_option(run_dir: Path) -> None:
