@@ -14,7 +14,8 @@ share the launcher's epoch):
 A grasp during which a service's recording stops for more than :data:`GAP_S` (the process was
 stalled or starved: a stalled master's operator script jumps ahead, a stalled hand misses its
 samples) is *interrupted*: listed with the gap, not judged; when the first grasp is
-interrupted, the first uninterrupted one is the reference.
+interrupted, the first uninterrupted one is the reference.  A store empty during such a gap
+or :data:`RECOVERY_S` after it is reported apart and not counted.
 
 Times are on the recordings' own clock (the launcher's epoch: the services start a few
 seconds after it).
@@ -42,13 +43,17 @@ Array = NDArray[np.float64]
 
 __all__ = ["RunRecordings", "EmptySpells", "GuardTime", "RecordingGap", "RecordedRunReport",
            "read_run_dir", "judge_recorded_run", "format_recorded_run", "EMPTY_FLOOR_J",
-           "GAP_S"]
+           "GAP_S", "RECOVERY_S"]
 
 #: an energy store below this is empty (J)
 EMPTY_FLOOR_J = 0.005
 #: a service's recording silent longer than this (s) interrupts the grasps it overlaps: ten of
 #: the hand's 25 ms samples, far above the 5-40 ms stalls of a busy machine
 GAP_S = 0.25
+#: after a recording gap the loop is given this long (s) before an empty store counts again:
+#: the stalled service's first messages after it (the energy sent to a stalled hand meanwhile
+#: arrives with them)
+RECOVERY_S = 0.5
 
 _ROLES = ("master", "hand", "controller")
 #: (role, column, what it means): 0/1 flags, time spent at 1 is reported
@@ -86,6 +91,7 @@ class EmptySpells:
     longest_s: float
     longest_at_s: float  # start of the longest (nan: none)
     min_j: float  # the store's lowest value while the trigger was closed
+    excused_s: float = 0.0  # empty during a recording gap or RECOVERY_S after it: not counted
 
     @property
     def empty_fraction(self) -> float:
@@ -153,7 +159,7 @@ class RecordedRunReport:
                 "empty": [{"store": e.store, "closed_s": e.closed_s, "empty_s": e.empty_s,
                            "empty_fraction": e.empty_fraction, "spells": e.spells,
                            "longest_s": e.longest_s, "longest_at_s": e.longest_at_s,
-                           "min_j": e.min_j} for e in self.empty],
+                           "min_j": e.min_j, "excused_s": e.excused_s} for e in self.empty],
                 "guards": [{"what": x.what, "active_s": x.active_s, "spells": x.spells,
                             "first_at_s": x.first_at_s}
                            for x in self.guards]}
@@ -199,15 +205,17 @@ def _spans(t: Array, on: NDArray[np.bool_]) -> list[tuple[float, float]]:
 
 
 def _empty(store: str, t: Array, level_j: Array, closed: NDArray[np.bool_],
-           floor_j: float) -> EmptySpells:
+           floor_j: float, excused: NDArray[np.bool_]) -> EmptySpells:
     dt = np.diff(t, append=t[-1])
     seen = closed & np.isfinite(level_j)
-    empty = seen & (level_j < floor_j)
+    empty_any = seen & (level_j < floor_j)
+    empty = empty_any & ~excused
     spans = _spans(t, empty)
     longest = max(spans, key=lambda s: s[1], default=(math.nan, 0.0))
     return EmptySpells(store, float(dt[seen].sum()), float(dt[empty].sum()), len(spans),
                        longest[1], longest[0],
-                       float(level_j[seen].min()) if seen.any() else math.nan)
+                       float(level_j[seen].min()) if seen.any() else math.nan,
+                       float(dt[empty_any & excused].sum()))
 
 
 def _gaps(role: str, rec: Recording, min_gap_s: float) -> list[RecordingGap]:
@@ -233,8 +241,13 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
     stores = [("master tank", m.column("tank_j")), ("hand tank", _held(h, t, "tank_j"))]
     if c is not None:
         stores.append(("controller store", _held(c, t, "store_j")))
-    empty = tuple(_empty(name, t, level, closed, floor_j) for name, level in stores)
     recs = {"master": m, "hand": h, "controller": c}
+    gaps = tuple(x for role, rec in recs.items() if rec is not None
+                 for x in _gaps(role, rec, gap_s))
+    excused = np.zeros(len(t), dtype=bool)
+    for x in gaps:
+        excused |= (t >= x.at_s) & (t < x.at_s + x.gap_s + RECOVERY_S)
+    empty = tuple(_empty(name, t, level, closed, floor_j, excused) for name, level in stores)
     guards = []
     for role, col, what in _FLAGS + _FINGER_FLAGS:
         rec = recs[role]
@@ -243,8 +256,6 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
         spans = _spans(rec.t_s, np.nan_to_num(rec.column(col)) > 0.5)
         guards.append(GuardTime(what, sum(s[1] for s in spans), len(spans),
                                 spans[0][0] if spans else math.nan))
-    gaps = tuple(x for role, rec in recs.items() if rec is not None
-                 for x in _gaps(role, rec, gap_s))
     hit = [any(x.overlaps(g.t_start_s, g.t_end_s) for x in gaps) for g in grasps.grasps]
     if hit and hit[0] and not all(hit):
         grasps = grasps.rebased(hit.index(False))
@@ -281,9 +292,11 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
                  f"{r.floor_j * 1000:g} mJ):")
     for e in r.empty:
         where = (f", longest {e.longest_s:.2f} s at {e.longest_at_s:.1f} s" if e.spells else "")
+        excused = (f"; {e.excused_s:.2f} s more during recording gaps, not counted"
+                   if e.excused_s > 0 else "")
         lines.append(f"  {e.store:17s} lowest {e.min_j:.3f} J; empty {e.empty_s:.2f} s of "
                      f"{e.closed_s:.0f} s ({100 * e.empty_fraction:.2f} %) in {e.spells} "
-                     f"spells{where}")
+                     f"spells{where}{excused}")
     lines.append("guards:")
     for x in r.guards:
         when = (f" in {x.spells} spells, the first at {x.first_at_s:.1f} s"

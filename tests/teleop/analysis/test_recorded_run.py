@@ -21,7 +21,8 @@ PEAKS = (600.0, 610.0, 300.0, 605.0)
 
 
 def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = None,
-               drop: str | None = None, master_gap: tuple[float, float] | None = None) -> None:
+               drop: str | None = None, master_gap: tuple[float, float] | None = None,
+               hand_gap: tuple[float, float] | None = None) -> None:
     t = np.arange(0.0, 20.0, 0.01) + 3.0  # services start after the launcher's epoch
     if master_gap is not None:  # the master's process stalled: no rows in (a, b)
         t = t[(t <= master_gap[0]) | (t >= master_gap[1])]
@@ -41,6 +42,8 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
     write_recording(d / "master.csv", Recording.from_columns(master, meta))
 
     th = np.arange(0.0, 20.0, 0.025) + 3.0
+    if hand_gap is not None:  # the hand's process stalled: no rows in (a, b)
+        th = th[(th <= hand_gap[0]) | (th >= hand_gap[1])]
     ph = (th - 3.0) % 5.0
     kh = ((th - 3.0) // 5.0).astype(int)
     holding = (ph >= 1.5) & (ph < 3.0)
@@ -139,6 +142,21 @@ def test_a_grasp_a_recording_gap_interrupts_is_listed_not_judged(
     _write_run(short, master_gap=(14.5, 14.6))
     r = judge_recorded_run(read_run_dir(short), THRESHOLD_M)
     assert not r.gaps and r.judged.min_pressure_ratio == pytest.approx(0.5)
+
+
+def test_a_store_empty_while_the_hand_stalled_is_reported_apart(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The hand silent over (13.8, 14.3) s: the master tank's 0.5 s empty spell from 14.0 s
+    (trigger closed) lies within the gap and the 0.5 s after it: reported apart, not
+    counted; the same spell without the gap counts (test above)."""
+    _write_run(tmp_path, hand_gap=(13.8, 14.3))
+    r = judge_recorded_run(read_run_dir(tmp_path), THRESHOLD_M)
+    assert [x.role for x in r.gaps] == ["hand"]
+    master = next(e for e in r.empty if e.store == "master tank")
+    assert master.spells == 0 and master.empty_s == 0.0
+    assert master.excused_s == pytest.approx(0.5, abs=0.011)
+    assert main(["grasps", str(tmp_path), "--floor", "0.4", "--max-empty-s", "0.2"]) == 0
+    assert "0.50 s more during recording gaps, not counted" in capsys.readouterr().out
 
 
 def test_an_interrupted_first_grasp_hands_the_reference_on(
