@@ -79,13 +79,16 @@ def account(prev: Sample, now: Sample) -> tuple[float, float]:
     return unpaid, hidden
 
 
-def measure(profile: Callable[[float], Goal], **cfg: object) -> tuple[float, float, float]:
-    """Drive the hand on the emulator's default cylinder through ``profile`` (set-point per
-    elapsed time) at the hand's 40 Hz, read then apply as the hand service does.  Returns
-    (object work done while a finger's flag was off, net object work, motor travel in true
-    contact with the flag off), all fingers."""
+def measure(profile: Callable[[float], Goal], *, kind: str = "cylinder",
+            seen: Callable[[float, Sample, list[float]], None] | None = None,
+            **cfg: object) -> tuple[float, float, float]:
+    """Drive the hand on the emulator's object (``kind``: its default cylinder, or ``none``)
+    through ``profile`` (set-point per elapsed time) at the hand's 40 Hz, read then apply as
+    the hand service does; ``seen(t_s, sample, loads)`` gets every sample with the fingers'
+    present loads.  Returns (object work done while a finger's flag was off, net object work,
+    motor travel in true contact with the flag off), all fingers."""
     emu = PtyServoEmulator(make_bus_emulator(1, homes_counts=list(HOMES),
-                                             object_cfg=ObjectConfig(kind="cylinder")))
+                                             object_cfg=ObjectConfig(kind=kind)))
     emu.start()
     hand = build_dynamixel_hand(config(emu, **cfg))
     physics = emu.bus.physics
@@ -104,6 +107,8 @@ def measure(profile: Callable[[float], Goal], **cfg: object) -> tuple[float, flo
                 now = ([f.motor_angle_rad for f in reading.fingers],
                        [any(f.contact) for f in reading.fingers], physics.touching(),
                        list(physics.object_work_j))
+            if seen is not None:
+                seen(el, now, [f.load_units for f in reading.fingers])
             if prev is not None:
                 u, h = account(prev, now)
                 unpaid, hidden_rad = unpaid + u, hidden_rad + h
@@ -143,3 +148,41 @@ def test_the_set_points_of_a_live_run_leave_no_more_unpaid_than_today() -> None:
     unpaid, total, hidden = measure(recorded_profile())
     assert total > 0.005  # the grasps reached the cylinder (net 0.014 J when measured)
     assert unpaid <= 0.15, (unpaid, hidden)
+
+
+def _closing_loads(kind: str) -> tuple[list[float], list[float]]:
+    """The present loads (units) of every finger over a 0.5 rad/s close (3 s, from 0.5 s on),
+    on the samples it moved closed faster than 0.1 rad/s since the last: (those touching
+    nothing, those touching the object as the emulated finger's own contact says)."""
+    free: list[float] = []
+    touching: list[float] = []
+    last: list[tuple[float, Sample]] = []
+
+    def seen(t_s: float, now: Sample, loads: list[float]) -> None:
+        if last:
+            t0, before = last[0]
+            for k in range(3):
+                if (now[0][k] - before[0][k]) / (t_s - t0) > 0.1 and t_s > 0.5:
+                    (touching if now[2][k] else free).append(loads[k])
+        last[:] = [(t_s, now)]
+
+    measure(lambda t_s: min(3.0, 0.5 * t_s) if t_s < 3.0 else None, kind=kind, seen=seen)
+    return free, touching
+
+
+def test_the_load_cannot_tell_a_creep_into_the_cylinder_from_a_free_close() -> None:
+    """Why the flags need a stall (README, hardware section): the emulated finger's motor
+    friction loads a free close about as much as the cylinder loads a finger creeping into it
+    (measured 2026-11-27, two runs: free 217-341 units, creeping 170-516, 61-62 % of those
+    inside the free range), so no load threshold tells the two apart.  A characterisation of
+    the emulator's physics, not a wish: should this fail, the README's reason for the late
+    flags is stale (a tenth of the motor's viscous friction fails it: free 70-93, 16 %)."""
+    free, _ = _closing_loads("none")
+    _, creeping = _closing_loads("cylinder")
+    assert len(free) >= 20 and len(creeping) >= 20, (len(free), len(creeping))
+    lo, hi = min(free), max(free)
+    inside = sum(lo - 10.0 <= x <= hi + 10.0 for x in creeping) / len(creeping)
+    print(f"free close {lo:.0f}-{hi:.0f} units ({len(free)} samples); creeping into the "
+          f"cylinder {min(creeping):.0f}-{max(creeping):.0f} ({len(creeping)}), "
+          f"{inside:.0%} of them inside the free range")
+    assert inside >= 0.5
