@@ -174,7 +174,7 @@ def test_the_load_cannot_tell_a_creep_into_the_cylinder_from_a_free_close() -> N
     """Why the flags need a stall (README, hardware section): the emulated finger's motor
     friction loads a free close about as much as the cylinder loads a finger creeping into it
     (measured 2026-11-27, two runs: free 217-341 units, creeping 170-516, 61-62 % of those
-    inside the free range), so no load threshold tells the two apart.  A characterisation of
+    within 10 units of the free range), so no load threshold tells the two apart.  A characterisation of
     the emulator's physics, not a wish: should this fail, the README's reason for the late
     flags is stale (a tenth of the motor's viscous friction fails it: free 70-93, 16 %)."""
     free, _ = _closing_loads("none")
@@ -184,5 +184,5 @@ def test_the_load_cannot_tell_a_creep_into_the_cylinder_from_a_free_close() -> N
     inside = sum(lo - 10.0 <= x <= hi + 10.0 for x in creeping) / len(creeping)
     print(f"free close {lo:.0f}-{hi:.0f} units ({len(free)} samples); creeping into the "
           f"cylinder {min(creeping):.0f}-{max(creeping):.0f} ({len(creeping)}), "
-          f"{inside:.0%} of them inside the free range")
+          f"{inside:.0%} of them within 10 units of the free range")
     assert inside >= 0.5
