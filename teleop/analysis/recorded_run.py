@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from teleop.analysis.grasps import GraspSeries, curl_grasps
+from teleop.analysis.grasps import GraspSeries, GraspStats, curl_grasps
 from teleop.errors import RecordingError
 from teleop.recording import Recording, read_recording
 
@@ -120,6 +120,11 @@ class RecordingGap:
         return self.at_s < t_end_s and self.at_s + self.gap_s > t_start_s
 
 
+def _interrupted(gaps: tuple[RecordingGap, ...], g: GraspStats) -> bool:
+    """Whether any of ``gaps`` overlaps grasp ``g`` (it is then not judged)."""
+    return any(x.overlaps(g.t_start_s, g.t_end_s) for x in gaps)
+
+
 @dataclass(frozen=True, slots=True)
 class RecordedRunReport:
     source: str
@@ -134,14 +139,19 @@ class RecordedRunReport:
 
     def interrupted(self, index: int) -> bool:
         """Whether a recording gap overlaps grasp ``index`` (it is then not judged)."""
-        g = self.grasps.grasps[index]
-        return any(x.overlaps(g.t_start_s, g.t_end_s) for x in self.gaps)
+        return _interrupted(self.gaps, self.grasps.grasps[index])
 
     @property
     def judged(self) -> GraspSeries:
-        """The grasps no recording gap interrupted."""
-        gs = self.grasps.grasps
-        return GraspSeries(tuple(g for k, g in enumerate(gs) if not self.interrupted(k)))
+        """The grasps no recording gap interrupted (the first of them is the reference)."""
+        return GraspSeries(tuple(g for g in self.grasps.grasps
+                                 if not _interrupted(self.gaps, g)))
+
+    @property
+    def reference_index(self) -> int:
+        """The grasp the ratios are over: the first judged (0 when none is)."""
+        j = self.judged.grasps
+        return j[0].index if j else 0
 
     def as_dict(self) -> dict[str, object]:
         g = self.judged
@@ -256,7 +266,7 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
         spans = _spans(rec.t_s, np.nan_to_num(rec.column(col)) > 0.5)
         guards.append(GuardTime(what, sum(s[1] for s in spans), len(spans),
                                 spans[0][0] if spans else math.nan))
-    hit = [any(x.overlaps(g.t_start_s, g.t_end_s) for x in gaps) for g in grasps.grasps]
+    hit = [_interrupted(gaps, g) for g in grasps.grasps]
     if hit and hit[0] and not all(hit):
         grasps = grasps.rebased(hit.index(False))
     return RecordedRunReport(run.source, float(t[-1] - t[0]), threshold_m, floor_j, grasps,
@@ -274,9 +284,10 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
              + (f", {len(lost)} interrupted by a recording gap, not judged" if lost else "")]
     j = r.judged
     if j.grasps:
-        ref = "first" if j.grasps[0] is g.grasps[0] else f"grasp {j.grasps[0].index}"
         pressure = (f"peak pressure {j.min_pressure_ratio:.2f}"
                     if math.isfinite(j.min_pressure_ratio) else "peak pressure - (none read)")
+        k = r.reference_index
+        ref = "first" if k == 0 else f"grasp {k}"
         lines.append(f"weakest over {ref}: {pressure}, closure {j.min_closure_ratio:.2f}, "
                      f"felt force {j.min_felt_ratio:.2f}")
     if g.grasps:

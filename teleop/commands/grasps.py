@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         info(args, "FAIL: no complete grasp without a recording gap")
         return 1
     if weak or starved:
-        k = g.grasps[0].index
+        k = report.reference_index
         ref = "the first" if k == 0 else f"grasp {k} (the first without a recording gap)"
         info(args, f"FAIL: {len(weak)} grasps below {args.floor:g} of {ref} {weak[:10]}; "
              f"stores empty longer than {args.max_empty_s:g} s: {starved}")
