@@ -16,9 +16,9 @@ Example::
 
 from __future__ import annotations
 
+from array import array
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from itertools import chain
 from operator import attrgetter
 from typing import Any
 
@@ -234,21 +234,22 @@ _NAN_C, _NAN_H = (np.nan,) * _N_C, (np.nan,) * _N_H
 class _Recorder:
     """Collects rows (one per master tick) of the latest sample of each service.
 
-    Rows are kept as tuples of Python floats and stacked into float64 arrays once, at the
-    end (:meth:`arrays`: the same values as writing each row into a preallocated array).
-    The controller's and hand's rows are built once per (sample, fresh) and kept once: a
-    master tick records only their index (the hand ticks at 40 Hz, the master at 1 kHz), and
-    :meth:`arrays` stacks the distinct rows and repeats them by index (the same float64
-    values as stacking every tick's row)."""
+    Rows go into growing C arrays of doubles (``array('d')``; ``extend`` converts each value
+    as ``float()`` does, the same float64 as writing it into a preallocated numpy array) and
+    become float64 arrays once, at the end (:meth:`arrays`, a copy of the buffer).  The
+    controller's and hand's rows are built once per (sample, fresh) and kept once: a master
+    tick records only their index (the hand ticks at 40 Hz, the master at 1 kHz), and
+    :meth:`arrays` repeats the distinct rows by index (the same float64 values as stacking
+    every tick's row)."""
 
     def __init__(self) -> None:
         self.n = 0
-        self._m: list[tuple[float, ...]] = []
-        self._audit: list[tuple[float, float, float, float]] = []
-        self._c_rows: list[tuple[float, ...]] = [_NAN_C]  # distinct rows; 0: no sample yet
-        self._h_rows: list[tuple[float, ...]] = [_NAN_H]
-        self._c: list[int] = []  # per master tick: index into ``_c_rows``
-        self._h: list[int] = []
+        self._m = array("d")
+        self._audit = array("d")
+        self._c_rows = array("d", _NAN_C)  # distinct rows; 0: no sample yet
+        self._h_rows = array("d", _NAN_H)
+        self._c = array("q")  # per master tick: index into ``_c_rows``
+        self._h = array("q")
         self._c_key: tuple[object, bool] | None = None
         self._h_key: tuple[object, bool] | None = None
         self._c_at = 0
@@ -256,16 +257,16 @@ class _Recorder:
 
     def row(self, m: MasterSample, c: ControllerSample | None, h: HandSample | None,
             c_fresh: bool, h_fresh: bool, audit: tuple[float, float, float, float]) -> None:
-        self._audit.append(audit)
-        self._m.append(_master_row(m))
+        self._audit.extend(audit)
+        self._m.extend(_master_row(m))
         if c is None:
             self._c.append(0)
         else:
             key = self._c_key
             if key is None or key[0] is not c or key[1] != c_fresh:
                 self._c_key = (c, c_fresh)
-                self._c_at = len(self._c_rows)
-                self._c_rows.append((
+                self._c_at = len(self._c_rows) // _N_C
+                self._c_rows.extend((
                     *c.setpoint_rad, c.commanded_force_n, *c.max_pressure, c.store_j,
                     c.sent_j, c.received_j, c.dissipated_j,
                     c.master_delay_s if c_fresh else np.nan,
@@ -278,8 +279,8 @@ class _Recorder:
             key = self._h_key
             if key is None or key[0] is not h or key[1] != h_fresh:
                 self._h_key = (h, h_fresh)
-                self._h_at = len(self._h_rows)
-                self._h_rows.append((
+                self._h_at = len(self._h_rows) // _N_H
+                self._h_rows.extend((
                     *h.setpoint_rad, *h.proximal_angle_rad, *h.distal_angle_rad,
                     *h.motor_angle_rad, *h.setpoint_desired_rad, *h.pressure, h.tank_j,
                     h.port_in_j, h.port_out_j, h.sent_j, h.received_j, h.dissipated_j,
@@ -289,17 +290,14 @@ class _Recorder:
 
     def arrays(self) -> tuple[Array, Array, Array, Array]:
         """(master, controller, hand, audit) rows as float64 arrays, one row per master tick."""
-        def stack(rows: list[tuple[float, ...]], width: int) -> Array:
-            flat = np.fromiter(chain.from_iterable(rows), dtype=np.float64,
-                               count=len(rows) * width)
-            return flat.reshape(len(rows), width)
+        def stack(rows: array[float], width: int) -> Array:
+            return np.frombuffer(rows, dtype=np.float64).reshape(-1, width).copy()
 
-        def repeat(rows: list[tuple[float, ...]], width: int, index: list[int]) -> Array:
-            return stack(rows, width)[np.array(index, dtype=np.intp)]
+        def repeat(rows: array[float], width: int, index: array[int]) -> Array:
+            return stack(rows, width)[np.frombuffer(index, dtype=np.int64)]
 
         return (stack(self._m, len(_MASTER_COLS)), repeat(self._c_rows, _N_C, self._c),
-                repeat(self._h_rows, _N_H, self._h),
-                stack(self._audit, 4))  # type: ignore[arg-type]
+                repeat(self._h_rows, _N_H, self._h), stack(self._audit, 4))
 
 
 def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = None,
