@@ -27,6 +27,7 @@ BENCHES: dict[str, str] = {
     "servo": "sim.servo_emulator_bench:bench_servo",
     "takktile": "sim.hand_emulator_bench:bench_takktile",
     "diagnose": "teleop.diagnose.bench:bench_diagnose",
+    "diagnose-finger": "sim.finger_diagnose_bench:bench_diagnose_finger",
 }
 
 
