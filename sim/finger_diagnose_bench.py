@@ -33,8 +33,8 @@ GOAL_S = 30.0
 
 
 def _record(folder: Path, duration_s: float) -> Path:
-    """The 60 s recording, made by ``teleop sim`` (its progress and summary on stderr); its
-    path."""
+    """The recording (``duration_s`` long), made by ``teleop sim`` (its progress and summary
+    on stderr); its path."""
     from teleop.cli import main
 
     model = folder / "ripple.toml"
