@@ -7,8 +7,8 @@ ripple (``shaft_ripple_sin_n = 1.0``, ``shaft_ripple_cos_n = 0.3`` at 100 rad^-1
 same command a user would type (``teleop sim force-blocks --duration 60 --rate-hz 1000 --set
 hand.sim.model=FILE``, FILE holding those three fields) and then diagnosed as ``teleop
 diagnose --model finger`` does (the recording read back from its CSV, the dynamic finger
-model, the one selection engine, progress off).  Without the term the scan is skipped and the
-same protocol takes about a third of the time.
+model, the one selection engine, its progress lines on stderr).  Without the term the scan
+is skipped and the same protocol takes about a third of the time.
 
 Figures: ``diagnose_s`` (wall) and ``diagnose_cpu_s`` (the process's CPU, every thread), the
 threads the simulations ran on, the load average beside them, and what was found (the term's
@@ -56,7 +56,7 @@ def bench_diagnose_finger(duration_s: float = 60.0) -> dict[str, Any]:
     from sim.finger_ripple import split
     from sim.parallel_runs import thread_count
     from sim.params import default_finger_params
-    from teleop.diagnose.select_sim import diagnose_dynamic
+    from teleop.diagnose.select_sim import diagnose_dynamic, print_progress
     from teleop.recording import read_recording
 
     with tempfile.TemporaryDirectory(prefix="teleop-bench-") as tmp:
@@ -65,7 +65,7 @@ def bench_diagnose_finger(duration_s: float = 60.0) -> dict[str, Any]:
         rec = read_recording(path, allow_nan=True)
         model = FingerDynamicModel(default_finger_params(), dynamic_data(rec, "motor_angle_rad"),
                                    0.2)
-        d = diagnose_dynamic(model, progress=None)
+        d = diagnose_dynamic(model, progress=print_progress)  # its lines on stderr
         elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
     found = split(d.terms)[1]
     wave = found.get("shaft_ripple_per_rad", math.nan)

@@ -20,6 +20,7 @@ def test_bench_diagnose_finger_json(capsys: pytest.CaptureFixture[str],
     out = capsys.readouterr()
     data = json.loads(out.out)  # the recording's summary went to stderr, not into the JSON
     assert "final_tendon_force_n" in out.err
+    assert "diagnose: physics step" in out.err  # the diagnosis's progress, on stderr too
     assert data["rows"] == 8001 and data["recording_s"] == 8.0
     assert data["diagnose_s"] > 0.0 and data["diagnose_cpu_s"] > 0.0
     assert data["goal_s"] == 30.0
