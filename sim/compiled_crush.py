@@ -2,10 +2,10 @@
 :mod:`sim.compiled_kernel` (``o[8]`` yield force N, ``o[9]`` yield hardening N/m): the same
 arithmetic in the same order as the Python functions of that name.
 
-Numba's disk cache keys each function on its own file: the step and the hand loop that inline
-these (:mod:`sim.compiled_step`, :mod:`sim.compiled_runs`) keep their cached machine code when
-only this file changes; touch them too (or run with a fresh ``NUMBA_CACHE_DIR``), as a mutant
-of this file showed.
+Numba's disk cache keys each function on its own file only, not on the kernels it
+inlines; :mod:`sim.compiled_cache` drops the cache of every compiled module when any of
+their sources changes, so an edit of the step or of the array layouts recompiles this
+file's functions too.
 """
 
 from __future__ import annotations

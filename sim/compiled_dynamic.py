@@ -9,10 +9,10 @@ rounding (``tests/sim/test_compiled_engine.py``).
 Each row's steps run in one inlined loop (:func:`_run`, the step :data:`_advance` inlined
 into it): the same operations in the same order as a call per step.
 
-Numba's disk cache keys on this file alone, not on the kernels it inlines: a change of the
-step or of the array layouts (:mod:`sim.compiled_kernel`; the dents of a yielding object moved
-the flexure angles to ``X_FLEX`` = 16, the shaft ripple made ``N_K`` 46) must touch this
-file too, or a stale cache runs.
+Numba's disk cache keys each function on its own file only, not on the kernels it
+inlines; :mod:`sim.compiled_cache` drops the cache of every compiled module when any of
+their sources changes, so an edit of the step or of the array layouts recompiles this
+file's functions too.
 """
 
 from __future__ import annotations

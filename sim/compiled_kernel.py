@@ -209,3 +209,17 @@ def motor_friction(v: float, k: np.ndarray, e: np.ndarray) -> tuple[float, float
     th = math.tanh(xv)
     return level * th, level * (1.0 - th * th) / vs
 
+
+def _drop_stale_cache() -> None:
+    """Drop numba's cache of the compiled modules when any of their sources changed
+    (:mod:`sim.compiled_cache`): run here, at import, before any compiled function is called."""
+    from pathlib import Path
+
+    from sim.compiled_cache import cache_dir_of, drop_stale
+
+    where = cache_dir_of(motor_friction)
+    if where is not None:
+        drop_stale(Path(__file__).resolve().parent, where)
+
+
+_drop_stale_cache()

@@ -6,9 +6,10 @@ the whole hand between two reads (``SimHand``, with the energy audit of ``sim.au
 the benchmark's 1 kHz controller (``teleop bench sim``).  Same arithmetic as the Python
 reference, in the same order.
 
-Numba's disk cache keys on this file alone, not on the step it inlines: a change of the step
-or of the array layouts (the shaft ripple made ``N_K`` 46; the step's work array,
-``advance_in``) must touch this file too, or a stale cache runs.
+Numba's disk cache keys each function on its own file only, not on the kernels it
+inlines; :mod:`sim.compiled_cache` drops the cache of every compiled module when any of
+their sources changes, so an edit of the step or of the array layouts recompiles this
+file's functions too.
 """
 
 from __future__ import annotations
