@@ -93,8 +93,7 @@ def _require_static(path: object, rec: Recording) -> None:
             "--input motor_cmd_units --output motor_angle_rad")
 
 
-def nrmse(y: Array, ym: Array) -> float:
-    """The report's fit NRMSE: residual norm over the measurement's spread about its mean."""
+def _nrmse(y: Array, ym: Array) -> float:
     return float(np.linalg.norm(y - ym) / np.linalg.norm(ym - np.mean(ym)))
 
 
@@ -104,7 +103,7 @@ def _dynamic_report(d: DynamicDiagnosis, what: str, data: DynamicData, dt_s: flo
     """Report lines and JSON; ``ripple``: the shaft ripple found (``FingerParams`` fields,
     empty without one)."""
     ym = d.y_meas
-    before, after = nrmse(d.nominal.y, ym), nrmse(d.final.y, ym)
+    before, after = _nrmse(d.nominal.y, ym), _nrmse(d.final.y, ym)
     lines = [f"{what} (output-error on {data.output}, physics step {dt_s * 1e3:.1f} ms, "
              f"{len(ym)} samples compared)"]
     if data.note:

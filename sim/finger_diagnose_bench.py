@@ -5,9 +5,9 @@ The hardest such recording is one whose residual calls for the position-periodic
 wavenumber scan: here a 60 s, 1 kHz ``force-blocks`` run of the finger with a 1 N shaft
 ripple (``shaft_ripple_sin_n = 1.0``, ``shaft_ripple_cos_n = 0.3`` at 100 rad^-1), made by the
 same command a user would type (``teleop sim force-blocks --duration 60 --rate-hz 1000 --set
-hand.sim.model=FILE``, FILE holding those three fields) and then diagnosed as ``teleop
-diagnose --model finger`` does (the recording read back from its CSV, the dynamic finger
-model, the one selection engine, its progress lines on stderr).  Without the term the scan
+hand.sim.model=FILE``, FILE holding those three fields) and then diagnosed by the command
+itself, ``teleop diagnose --model finger FILE.csv --json OUT`` (its report and progress on
+stderr); the figures of what was found are read from OUT.  Without the term the scan
 is skipped and the same protocol takes about a third of the time.
 
 Figures: ``diagnose_s`` (wall) and ``diagnose_cpu_s`` (the process's CPU, every thread), the
@@ -18,6 +18,7 @@ wavenumber and amplitude against the truth), so a fast but wrong run shows as wr
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import os
 import sys
@@ -32,45 +33,44 @@ RIPPLE = {"shaft_ripple_sin_n": 1.0, "shaft_ripple_cos_n": 0.3, "shaft_ripple_pe
 GOAL_S = 30.0
 
 
-def _record(folder: Path, duration_s: float) -> Path:
-    """The recording (``duration_s`` long), made by ``teleop sim`` (its progress and summary
-    on stderr); its path."""
+def _cli(argv: list[str]) -> None:
+    """``teleop ARGV`` as a user runs it, its stdout on stderr (the bench's stdout is JSON)."""
     from teleop.cli import main
 
+    with contextlib.redirect_stdout(sys.stderr):
+        code = main(argv)
+    if code != 0:
+        raise RuntimeError(f"teleop {argv[0]} exited with {code}")
+
+
+def _record(folder: Path, duration_s: float) -> Path:
+    """The recording (``duration_s`` long), made by ``teleop sim``; its path."""
     model = folder / "ripple.toml"
     model.write_text("[finger]\n" + "".join(f"{k} = {v}\n" for k, v in RIPPLE.items()))
     out = folder / "ripple.csv"
-    with contextlib.redirect_stdout(sys.stderr):  # its summary: the bench's stdout is JSON
-        code = main(["sim", "force-blocks", "--duration", f"{duration_s:g}", "--rate-hz", "1000",
-                     "--set", f"hand.sim.model={model}", "--out", str(out)])
-    if code != 0:
-        raise RuntimeError(f"teleop sim force-blocks exited with {code}")
+    _cli(["sim", "force-blocks", "--duration", f"{duration_s:g}", "--rate-hz", "1000",
+          "--set", f"hand.sim.model={model}", "--out", str(out)])
     return out
 
 
 def bench_diagnose_finger(duration_s: float = 60.0) -> dict[str, Any]:
     """Time ``teleop diagnose --model finger`` on the rippled recording (60 s; shorter ones
     for tests)."""
-    from sim.finger_diagnose import nrmse
-    from sim.finger_dynamic import FingerDynamicModel, dynamic_data
-    from sim.finger_ripple import split
     from sim.parallel_runs import thread_count
-    from sim.params import default_finger_params
-    from teleop.diagnose.select_sim import diagnose_dynamic, print_progress
     from teleop.recording import read_recording
 
     with tempfile.TemporaryDirectory(prefix="teleop-bench-") as tmp:
         path = _record(Path(tmp), duration_s)
+        rows = len(read_recording(path, allow_nan=True))
+        out = Path(tmp) / "diagnosis.json"
         t0, c0 = time.perf_counter(), time.process_time()
-        rec = read_recording(path, allow_nan=True)
-        model = FingerDynamicModel(default_finger_params(), dynamic_data(rec, "motor_angle_rad"),
-                                   0.2)
-        d = diagnose_dynamic(model, progress=print_progress)  # its lines on stderr
+        _cli(["diagnose", "--model", "finger", str(path), "--json", str(out)])
         elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
-    found = split(d.terms)[1]
+        doc = json.loads(out.read_text())
+    found = doc["proposed"][0]["params"] if doc["proposed"] else {}
     wave = found.get("shaft_ripple_per_rad", math.nan)
     amp = math.hypot(found.get("shaft_ripple_sin_n", 0.0), found.get("shaft_ripple_cos_n", 0.0))
-    return {"recording_s": duration_s, "rate_hz": 1000.0, "rows": len(rec),
+    return {"recording_s": duration_s, "rate_hz": 1000.0, "rows": rows,
             "diagnose_s": elapsed, "diagnose_cpu_s": cpu, "goal_s": GOAL_S,
             "goal_met": elapsed <= GOAL_S, "threads": thread_count(),
             "load_average_1min": os.getloadavg()[0],
@@ -78,6 +78,6 @@ def bench_diagnose_finger(duration_s: float = 60.0) -> dict[str, Any]:
             "concealed_amplitude_n": math.hypot(RIPPLE["shaft_ripple_sin_n"],
                                                 RIPPLE["shaft_ripple_cos_n"]),
             "found_wave_per_rad": wave, "found_amplitude_n": amp,
-            "catalog_effects_named": len(d.chosen),
-            "nrmse_before": nrmse(d.nominal.y, d.y_meas),
-            "nrmse_after": nrmse(d.final.y, d.y_meas)}
+            "catalog_effects_named": len(doc["effects"]),
+            "nrmse_before": doc["fit"]["before"]["nrmse"],
+            "nrmse_after": doc["fit"]["after"]["nrmse"]}
