@@ -336,6 +336,7 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     services: list[Any] = [m_svc, c_svc, h_svc]
     periods = [1.0 / s.rate_hz for s in services]
     ticks = [0, 0, 0]
+    due_t = [0.0, 0.0, 0.0]  # each service's next tick time, ``ticks[i] * periods[i]``
     n_master = int(np.floor(duration_s * m_svc.rate_hz + 1e-9)) + 1
     rows = _Recorder()
     last_c: ControllerSample | None = None
@@ -350,7 +351,7 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     report_every = max(1, n_master // 100)
     try:
         while True:
-            t = min(ticks[0] * periods[0], ticks[1] * periods[1], ticks[2] * periods[2])
+            t = min(due_t)
             if t > duration_s + 1e-12 or rows.n >= n_master:
                 break
             if t > clock.now_s():
@@ -361,9 +362,10 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
             m_sample: MasterSample | None = None
             c_fresh = h_fresh = False
             for i, s in enumerate(services):
-                t_i = ticks[i] * periods[i]
-                if abs(t_i - t) < 1e-12 or t_i < t:
-                    ticks[i] += 1
+                t_i = due_t[i]
+                if t_i < t or abs(t_i - t) < 1e-12:
+                    k = ticks[i] = ticks[i] + 1
+                    due_t[i] = k * periods[i]
                     if s is None:  # a dead service (fault injection)
                         if i == 0:
                             m_sample = None

@@ -115,7 +115,9 @@ def _model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
     terms, how, f_max = _terms(r, p), p.force_combine, p.force_max_n
     if how == "max" and len(terms) == 3:  # the default, unrolled: same operations and order
         (k0, c0), (k1, c1), (k2, c2) = terms
-        f = []
+        # the trapezoids' sum as the general path below forms it, without the list
+        total = 0
+        f_first = f_last = 0.0
         for j in range(n + 1):  # max/min spelled as the comparisons they make (same bits)
             th = t0 + j * h
             d0, d1, d2 = th - c0, th - c1, th - c2
@@ -128,10 +130,18 @@ def _model_energy_j(r: RenderState, p: ControlParams, q_m: float) -> float:
                 x = x2
             if x < 0.0:  # min(max(x, 0.0), f_max)
                 x = 0.0
-            f.append(f_max if f_max < x else x)
-    else:
-        f = [_force_of(terms, how, f_max, t0 + j * h) for j in range(n + 1)]
-    return h * (sum(f) - 0.5 * (f[0] + f[-1])) / map_gain_rad_per_m(p)
+            if f_max < x:
+                x = f_max
+            total += x
+            if j == 0:
+                f_first = x
+            f_last = x
+        return h * (total - 0.5 * (f_first + f_last)) / map_gain_rad_per_m(p)
+    f = [_force_of(terms, how, f_max, t0 + j * h) for j in range(n + 1)]
+    total = 0
+    for x in f:  # left to right, one rounding per addition (not ``sum``: Python 3.12's
+        total += x  # compensated float sum would round differently from the path above)
+    return h * (total - 0.5 * (f[0] + f[-1])) / map_gain_rad_per_m(p)
 
 
 def _terms(r: RenderState, p: ControlParams) -> list[tuple[float, float]]:

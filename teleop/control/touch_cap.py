@@ -65,28 +65,34 @@ def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
     set-points)."""
     if model[1] <= 0.0 and model[3] <= 0.0 and model[5] <= 0.0:  # no model: nothing capped
         return NO_TOUCH, NO_TOUCH, (setpoints[0], setpoints[1], setpoints[2])
-    echo = master.echo_t_s if master is not None else -1.0
+    # without a master state nothing is echoed: an echo at -inf is before every touch
+    echo = master.echo_t_s if master is not None else -math.inf
     t_m = master.header.t_s if master is not None else math.nan
+    held = master.echo_held_s if master is not None else math.nan
     feel = feel_time_s(p)
-    new_since, new_felt, out = [], [], []
-    for i in range(3):
-        c, k = model[2 * i], model[2 * i + 1]
-        if k <= 0.0:
-            new_since.append(math.nan)
-            new_felt.append(math.nan)
-            out.append(setpoints[i])
-            continue
-        t0 = since[i] if math.isfinite(since[i]) else t_s
-        new_since.append(t0)
-        t1 = felt[i]
-        if not math.isfinite(t1) and master is not None and echo >= t0:
-            t1 = t_m - master.echo_held_s
-        new_felt.append(t1)
-        if math.isfinite(t1) and t_m - t1 >= feel:
-            out.append(setpoints[i])
-        else:
-            out.append(min(setpoints[i], c + touch_depth_rad(p, k)))
-    return tuple(new_since), tuple(new_felt), tuple(out)  # type: ignore[return-value]
+    f0, t0, s0 = _finger_cap(model[0], model[1], since[0], felt[0], setpoints[0], p, t_s, echo,
+                             t_m, held, feel)
+    f1, t1, s1 = _finger_cap(model[2], model[3], since[1], felt[1], setpoints[1], p, t_s, echo,
+                             t_m, held, feel)
+    f2, t2, s2 = _finger_cap(model[4], model[5], since[2], felt[2], setpoints[2], p, t_s, echo,
+                             t_m, held, feel)
+    return (f0, f1, f2), (t0, t1, t2), (s0, s1, s2)
+
+
+def _finger_cap(c: float, k: float, since: float, felt: float, setpoint: float,
+                p: ControlParams, t_s: float, echo: float, t_m: float, held: float,
+                feel: float) -> tuple[float, float, float]:
+    """One finger of :func:`unseen_touch_cap`: (since, felt, set-point); ``echo``, ``t_m``
+    and ``held``: the master state's echo, time and hold (-inf, nan, nan without one)."""
+    if k <= 0.0:
+        return math.nan, math.nan, setpoint
+    t0 = since if math.isfinite(since) else t_s
+    t1 = felt
+    if not math.isfinite(t1) and echo >= t0:
+        t1 = t_m - held
+    if math.isfinite(t1) and t_m - t1 >= feel:
+        return t0, t1, setpoint
+    return t0, t1, min(setpoint, c + touch_depth_rad(p, k))
 
 
 def _valid(m: FingerModel | None) -> tuple[float, float] | None:

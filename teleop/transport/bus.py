@@ -251,6 +251,7 @@ class Inbox:
         out: list[Received] = []
         exact = self.spec.msg_type
         decoder, signal, seq_jumps = self._decoder, self.signal, self._seq_jumps
+        cap = self.seq_jump_max
         for p, sent_t_s, delivered_t_s, delay_s in due:
             if type(p) is exact:  # an in-process message the codec round-trips exactly
                 msg = p
@@ -260,11 +261,13 @@ class Inbox:
                 if msg is None:
                     continue
             seq = msg.header.seq
-            if self._drop_stale and self._last_seq is not None:
-                if seq <= self._last_seq:
-                    decoder.reject("stale_seq", f"{signal} seq {seq} <= {self._last_seq}")
+            last = self._last_seq
+            if self._drop_stale and last is not None:
+                if seq <= last:
+                    decoder.reject("stale_seq", f"{signal} seq {seq} <= {last}")
                     continue
-                if (self.seq_jump_max is not None  # (without a cap the check passes)
+                # (without a cap, or within it, the check passes: asked only beyond it)
+                if (cap is not None and seq - last > cap
                         and not self._check_seq_jump(msg, delivered_t_s)):
                     continue
             msg = self._check_energy(msg)

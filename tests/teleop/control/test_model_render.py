@@ -180,3 +180,51 @@ def test_the_written_out_default_force_is_the_general_one_bit_for_bit() -> None:
         th = v(1)
         want = _force_of(_terms(r, P), P.force_combine, P.force_max_n, th)
         assert struct.pack("<d", _force_at(r, P, th)) == struct.pack("<d", want)
+
+
+def test_the_written_out_default_energy_is_the_general_one_bit_for_bit() -> None:
+    """``_model_energy_j``'s three-finger ``max`` path (no list of forces) against the
+    trapezoids over ``_force_of`` written here, added left to right: the same float."""
+    import random
+    import struct
+
+    from teleop.control.model_render import (
+        _ENVELOPE_STEPS,
+        RenderState,
+        _force_of,
+        _model_energy_j,
+        _terms,
+        map_gain_rad_per_m,
+        setpoint_rad,
+    )
+
+    def reference(r: RenderState, q: float) -> float:
+        on = [i for i in range(3) if r.stiffness_n_per_rad[i] > 0.0]
+        if not on:
+            return 0.0
+        t_end, t0 = setpoint_rad(P, q), min(r.contact_rad[i] for i in on)
+        if t_end <= t0:
+            return 0.0
+        h = (t_end - t0) / _ENVELOPE_STEPS
+        f = [_force_of(_terms(r, P), "max", P.force_max_n, t0 + j * h)
+             for j in range(_ENVELOPE_STEPS + 1)]
+        total = 0.0
+        for x in f:
+            total += x
+        return h * (total - 0.5 * (f[0] + f[-1])) / map_gain_rad_per_m(P)
+
+    assert P.force_combine == "max" and all(P.finger_enable)
+    rng = random.Random(11)
+
+    def k() -> float:
+        return 0.0 if rng.random() < 0.2 else rng.uniform(0.0, 200.0)
+
+    checked = 0
+    for _ in range(2000):
+        r = RenderState(contact_rad=(rng.uniform(0, 2), rng.uniform(0, 2), rng.uniform(0, 2)),
+                        stiffness_n_per_rad=(k(), k(), k()))
+        q = rng.uniform(-0.005, P.trigger_travel_m * 1.2)
+        want = reference(r, q)
+        checked += want > 0.0
+        assert struct.pack("<d", _model_energy_j(r, P, q)) == struct.pack("<d", want)
+    assert checked > 500  # most draws store energy: the sums are exercised
