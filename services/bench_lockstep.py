@@ -14,6 +14,10 @@ implementation (``mkdir /tmp/ref && git archive dc373eb | tar -x -C /tmp/ref``) 
 lockstep runs the same seconds on both engines in a subprocess, alternating with this tree's
 runs in the same repetitions, so ``compiled_lockstep_over_reference_python`` is this tree
 against the one before it, measured side by side (``reference_*`` its own figures).
+
+``--instructions``: the same comparison in machine instructions counted by callgrind (this
+tree's compiled engine, the reference's Python engine), a figure that does not move with the
+machine's load (:mod:`services.bench_instructions`).
 """
 
 from __future__ import annotations
@@ -112,11 +116,17 @@ def check_reference(reference: str) -> Path:
 
 
 def bench_lockstep(sim_time_s: float = 10.0, repeats: int = 2,
-                   reference: str | None = None) -> dict[str, float]:
-    """Figures for ``teleop bench lockstep`` (see the module docstring)."""
+                   reference: str | None = None,
+                   instructions: bool = False) -> dict[str, float]:
+    """Figures for ``teleop bench lockstep`` (see the module docstring); ``instructions``:
+    the fixed-work figures of :mod:`services.bench_instructions` too (valgrind)."""
     from services.lockstep import run_lockstep
 
     tree = check_reference(reference) if reference is not None else None
+    if instructions:
+        from services.bench_instructions import valgrind_path
+
+        valgrind_path()  # before minutes of timing: a missing valgrind is a bad input
     out: dict[str, float] = {"sim_time_s": sim_time_s}
     for eng in ("python", "compiled"):
         cfg = load_config(None, [f"hand.sim.engine={eng}"])
@@ -146,4 +156,8 @@ def bench_lockstep(sim_time_s: float = 10.0, repeats: int = 2,
                     out[f"{eng}_lockstep_realtime_factor"]
                     / out[f"reference_{ref}_lockstep_realtime_factor"])
     out.update(_profile_shares(load_config(None, ["hand.sim.engine=compiled"]), sim_time_s))
+    if instructions:
+        from services.bench_instructions import instruction_figures
+
+        out.update(instruction_figures(Path(__file__).resolve().parents[1], tree))
     return out

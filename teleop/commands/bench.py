@@ -42,6 +42,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--repeats", type=int, default=None, metavar="N",
                    help="lockstep only: alternations of this tree and the reference, best of "
                    "N each (default 2; more on a loaded machine)")
+    p.add_argument("--instructions", action="store_true",
+                   help="lockstep only: also count the machine instructions of one simulated "
+                   "second in this tree and the reference (valgrind's callgrind; load-"
+                   "independent; the first run compiles for valgrind's CPU, minutes)")
     p.set_defaults(run=run)
 
 
@@ -70,6 +74,11 @@ def run(args: argparse.Namespace) -> int:
         if args.name != "lockstep" or args.repeats < 1:
             raise UserInputError("--repeats: a count >= 1, only for `bench lockstep`")
         kwargs["repeats"] = args.repeats
+    if getattr(args, "instructions", False):
+        if args.name != "lockstep":
+            raise UserInputError(f"--instructions: only for `bench lockstep`, not "
+                                 f"{args.name!r}")
+        kwargs["instructions"] = True
     info(args, f"bench {args.name}: running...")
     figures = fn(**kwargs)
     if args.json_path is None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -48,3 +49,26 @@ def test_bench_repeats_only_for_lockstep(capsys: pytest.CaptureFixture[str]) -> 
     assert main(["bench", "lockstep", "--repeats", "0"]) == 2
     err = capsys.readouterr().err
     assert err.count("--repeats") == 2
+
+
+def test_instructions_only_for_lockstep_and_need_valgrind(
+        monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "sim", "--instructions"]) == 2
+    monkeypatch.setenv("PATH", "")  # no valgrind: refused before any timing
+    assert main(["bench", "lockstep", "--instructions"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "--instructions" in err[0] and "valgrind not found" in err[1]
+
+
+@pytest.mark.slow  # two runs under valgrind, about 15 s each
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind")
+def test_instructions_count_the_measured_run_only() -> None:
+    """Twice the simulated time, about twice the instructions: start-up, imports and the
+    warm-up (some 40 billion instructions, against tens of millions here) are not counted."""
+    from services.bench_instructions import count_instructions
+
+    tree = Path(__file__).resolve().parents[2]
+    short = count_instructions(tree, "python", 0.05)
+    long = count_instructions(tree, "python", 0.1)
+    assert 1e6 < short < 1e9
+    assert 1.6 < long / short < 2.4
