@@ -70,13 +70,13 @@ def unseen_touch_cap(since: Triple, p: ControlParams, model: tuple[float, ...],
     t_m = master.header.t_s if master is not None else math.nan
     held = master.echo_held_s if master is not None else math.nan
     feel = feel_time_s(p)
-    f0, t0, s0 = _finger_cap(model[0], model[1], since[0], felt[0], setpoints[0], p, t_s, echo,
-                             t_m, held, feel)
-    f1, t1, s1 = _finger_cap(model[2], model[3], since[1], felt[1], setpoints[1], p, t_s, echo,
-                             t_m, held, feel)
-    f2, t2, s2 = _finger_cap(model[4], model[5], since[2], felt[2], setpoints[2], p, t_s, echo,
-                             t_m, held, feel)
-    return (f0, f1, f2), (t0, t1, t2), (s0, s1, s2)
+    since0, felt0, sp0 = _finger_cap(model[0], model[1], since[0], felt[0], setpoints[0], p,
+                                     t_s, echo, t_m, held, feel)
+    since1, felt1, sp1 = _finger_cap(model[2], model[3], since[1], felt[1], setpoints[1], p,
+                                     t_s, echo, t_m, held, feel)
+    since2, felt2, sp2 = _finger_cap(model[4], model[5], since[2], felt[2], setpoints[2], p,
+                                     t_s, echo, t_m, held, feel)
+    return (since0, since1, since2), (felt0, felt1, felt2), (sp0, sp1, sp2)
 
 
 def _finger_cap(c: float, k: float, since: float, felt: float, setpoint: float,
