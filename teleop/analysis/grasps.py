@@ -38,6 +38,11 @@ __all__ = ["GraspStats", "GraspSeries", "grasp_windows", "held_max", "analyse_gr
 #: a closure counts when a finger holds it this long (s): longer than an impact's overshoot
 #: (one or two 25 ms hand samples), shorter than any hold of a grasp
 HOLD_S = 0.1
+#: a grasp felt at least this fraction of the reference's force ...
+FELT_AS_REFERENCE = 0.9
+#: ... with its peak pressure under this fraction of the reference's: felt, not held
+#: (:attr:`GraspSeries.felt_not_held`)
+HELD_UNDER = 0.5
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,6 +82,18 @@ class GraspSeries:
     def min_closure_ratio(self) -> float:
         vals = [g.closure_ratio for g in self.grasps if math.isfinite(g.closure_ratio)]
         return min(vals) if vals else math.nan
+
+    @property
+    def felt_not_held(self) -> tuple[GraspStats, ...]:
+        """Grasps the operator felt like the reference (felt force at least
+        :data:`FELT_AS_REFERENCE` of its) while the hand held under :data:`HELD_UNDER` of its
+        peak pressure: a grasp felt that the hand was not making (a hand whose tank holds its
+        set-points back while the master renders the object's contact model:
+        docs/controllers.md, "Hard squeezes over ten minutes").  None without pressure
+        ratios (a hand without tactile cells)."""
+        return tuple(g for g in self.grasps
+                     if math.isfinite(g.felt_ratio) and math.isfinite(g.pressure_ratio)
+                     and g.felt_ratio >= FELT_AS_REFERENCE and g.pressure_ratio < HELD_UNDER)
 
     @property
     def weakest(self) -> GraspStats | None:

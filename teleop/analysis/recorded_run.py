@@ -163,6 +163,7 @@ class RecordedRunReport:
                 "grasp_count": len(rows), "judged_count": len(g.grasps),
                 "min_pressure_ratio": g.min_pressure_ratio,
                 "min_closure_ratio": g.min_closure_ratio, "min_felt_ratio": g.min_felt_ratio,
+                "felt_not_held": [x.index for x in g.felt_not_held],
                 "grasps": rows,
                 "gap_bound_s": self.gap_bound_s,
                 "gaps": [{"role": x.role, "at_s": x.at_s, "gap_s": x.gap_s} for x in self.gaps],
@@ -290,6 +291,14 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
         ref = "first" if k == 0 else f"grasp {k}"
         lines.append(f"weakest over {ref}: {pressure}, closure {j.min_closure_ratio:.2f}, "
                      f"felt force {j.min_felt_ratio:.2f}")
+        ghost = j.felt_not_held
+        if ghost:
+            shown = ", ".join(str(x.index) for x in ghost[:12]) + (", ..." if len(ghost) > 12
+                                                                  else "")
+            lines.append(f"felt, not held: {len(ghost)} grasps (grasp {shown}) felt at "
+                         f"{min(x.felt_ratio for x in ghost):.2f} or more of the {ref}'s "
+                         f"force with {max(x.pressure_ratio for x in ghost):.2f} or less of "
+                         "its pressure: the operator feels a grasp the hand is not making")
     if g.grasps:
         lines.append(format_grasps(g, every, marked=frozenset(lost)))
     if r.gaps:

@@ -105,3 +105,18 @@ def test_without_pressures_the_weakest_grasp_is_the_least_closed() -> None:
     rows = format_grasps(g, every=10).splitlines()
     assert [r.split()[0] for r in rows[1:]] == ["0", "4", "5"]  # first, weakest, last
     assert rows[1].split()[3] == "-"
+
+
+def test_felt_not_held_needs_a_full_feel_and_a_weak_grip() -> None:
+    from teleop.analysis.grasps import GraspSeries, GraspStats
+
+    def g(i: int, p: float, f: float) -> GraspStats:
+        return GraspStats(index=i, t_start_s=4.5 * i, t_end_s=4.5 * i + 4.5,
+                          peak_pressure=600.0 * p, closure_rad=0.9, felt_force_n=8.0 * f,
+                          pressure_ratio=p, closure_ratio=1.0, felt_ratio=f)
+
+    s = GraspSeries((g(0, 1.0, 1.0), g(1, 0.3, 1.0), g(2, 0.3, 0.3), g(3, 0.5, 0.95),
+                     g(4, 0.1, 0.9), g(5, math.nan, 1.0)))
+    # 1: felt in full at 0.3 of the pressure; 4: felt at the threshold at 0.1. Not 2 (felt as
+    # weak as it was held), 3 (half the pressure is weak, not absent), 5 (no pressure ratio)
+    assert [x.index for x in s.felt_not_held] == [1, 4]

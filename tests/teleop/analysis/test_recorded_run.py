@@ -22,7 +22,8 @@ PEAKS = (600.0, 610.0, 300.0, 605.0)
 
 def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = None,
                drop: str | None = None, master_gap: tuple[float, float] | None = None,
-               hand_gap: tuple[float, float] | None = None) -> None:
+               hand_gap: tuple[float, float] | None = None,
+               peaks: tuple[float, ...] = PEAKS) -> None:
     t = np.arange(0.0, 20.0, 0.01) + 3.0  # services start after the launcher's epoch
     if master_gap is not None:  # the master's process stalled: no rows in (a, b)
         t = t[(t <= master_gap[0]) | (t >= master_gap[1])]
@@ -50,7 +51,7 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
     hand: dict[str, np.ndarray] = {"t_s": th}
     for i in range(27):
         hand[f"pressure_f{i // 9 + 1}_{i % 9}"] = np.where(
-            holding & (i == 4), np.array(PEAKS)[np.clip(kh, 0, 3)], 0.0)
+            holding & (i == 4), np.array(peaks)[np.clip(kh, 0, 3)], 0.0)
     for f in (1, 2, 3):
         hand[f"proximal_angle_rad_f{f}"] = np.where(holding, 0.5, 0.0)
         hand[f"distal_angle_rad_f{f}"] = np.where(holding, 0.4, 0.0)
@@ -100,6 +101,27 @@ def test_guard_time_is_measured(run_dir: Path) -> None:
     # the 5 mJ empty line, so the report says so here (a dynamixel run: 70 % of the time)
     assert g["hand set-point held back by its tank"].active_s == pytest.approx(1.5, abs=0.03)
     assert g["hand set-point held back by its tank"].first_at_s == pytest.approx(9.0)
+
+
+def test_a_grasp_felt_in_full_but_not_held_is_named(tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    """The displayed force is 8 N in every grasp; a third grasp at a third of the first's
+    pressure is felt, not held (named in the report and the JSON); at half (the fixture's
+    PEAKS) it is only weak."""
+    _write_run(tmp_path, peaks=(600.0, 610.0, 200.0, 605.0))
+    r = judge_recorded_run(read_run_dir(tmp_path), THRESHOLD_M)
+    assert [g.index for g in r.judged.felt_not_held] == [2]
+    assert main(["grasps", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "felt, not held: 1 grasps (grasp 2)" in out
+    assert main(["grasps", str(tmp_path), "--json", "-"]) == 0
+    assert json.loads(capsys.readouterr().out)["felt_not_held"] == [2]
+    weak = tmp_path / "weak"
+    weak.mkdir()
+    _write_run(weak)  # the third grasp at 0.50 of the first: weak, still held
+    assert judge_recorded_run(read_run_dir(weak), THRESHOLD_M).judged.felt_not_held == ()
+    assert main(["grasps", str(weak)]) == 0
+    assert "felt, not held" not in capsys.readouterr().out
 
 
 def test_cli_floor_and_json(run_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
