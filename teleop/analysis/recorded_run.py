@@ -296,9 +296,10 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
             shown = ", ".join(str(x.index) for x in ghost[:12]) + (", ..." if len(ghost) > 12
                                                                   else "")
             lines.append(f"felt, not held: {len(ghost)} grasps (grasp {shown}) felt at "
-                         f"{min(x.felt_ratio for x in ghost):.2f} or more of the {ref}'s "
-                         f"force with {max(x.pressure_ratio for x in ghost):.2f} or less of "
-                         "its pressure: the operator feels a grasp the hand is not making")
+                         f"{min(x.felt_ratio for x in ghost):.2f} or more of "
+                         f"{'the first' if k == 0 else ref}'s force with "
+                         f"{max(x.pressure_ratio for x in ghost):.2f} or less of its "
+                         "pressure: the operator feels a grasp the hand is not making")
     if g.grasps:
         lines.append(format_grasps(g, every, marked=frozenset(lost)))
     if r.gaps:
