@@ -106,7 +106,7 @@ def hold_segments_s(cfg: TeleopConfig, t_end_s: float) -> tuple[tuple[float, flo
     if not v.repeat:
         settle = settle_time_s(cfg)
         return ((settle, t_end_s + 1e-9),) if t_end_s > settle else ()
-    period = v.close_s + v.ramp_s + v.hold_s + v.release_s
+    period = v.cycle_s
     rt = round_trip_s(cfg)
     out = []
     k = 0

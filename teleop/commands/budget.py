@@ -40,8 +40,7 @@ def run(args: argparse.Namespace) -> int:
     from services.lockstep import run_lockstep
     from teleop.analysis.energy_budget import format_budget, grasp_budget
 
-    v = cfg.master.virtual
-    cycle = v.close_s + v.ramp_s + v.hold_s + v.release_s
+    cycle = cfg.master.virtual.cycle_s
     r = run_lockstep(cfg, args.seconds, seed=args.seed)
     rows = grasp_budget(r, cycle)
     if args.json_path != "-":

@@ -28,6 +28,11 @@ class VirtualOperatorConfig:
                                    lo=0.0, hi=1.0)
     repeat: bool = param(True, "repeat the close/hold/release script")
 
+    @property
+    def cycle_s(self) -> float:
+        """One grasp of the script: wait, close, hold, release (s)."""
+        return self.close_s + self.ramp_s + self.hold_s + self.release_s
+
 
 @dataclass(frozen=True, slots=True)
 class MasterConfig:
