@@ -40,7 +40,8 @@ __all__ = ["GraspStats", "GraspSeries", "grasp_windows", "held_max", "analyse_gr
 HOLD_S = 0.1
 #: a grasp felt at least this fraction of the reference's force ...
 FELT_AS_REFERENCE = 0.9
-#: ... with its peak pressure under this fraction of the reference's: felt, not held
+#: ... with its peak pressure under this fraction of the reference's, and the force its own
+#: pressure asks for (where recorded) under this fraction of what was felt: felt, not held
 #: (:attr:`GraspSeries.felt_not_held`)
 HELD_UNDER = 0.5
 
@@ -59,6 +60,9 @@ class GraspStats:
     closure_ratio: float
     felt_ratio: float
     peak_closure_rad: float = math.nan  # the largest angle, however briefly
+    #: the largest force the hand's measured pressure asked the trigger for (the
+    #: controller's measured-force command; nan: not recorded)
+    measured_force_n: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,11 +93,15 @@ class GraspSeries:
         :data:`FELT_AS_REFERENCE` of its) while the hand held under :data:`HELD_UNDER` of its
         peak pressure: a grasp felt that the hand was not making (a hand whose tank holds its
         set-points back while the master renders the object's contact model:
-        docs/controllers.md, "Hard squeezes over ten minutes").  None without pressure
-        ratios (a hand without tactile cells)."""
+        docs/controllers.md, "Hard squeezes over ten minutes").  Where the measured-force
+        command is recorded, also only while it stayed under :data:`HELD_UNDER` of the felt
+        force: a pressure far under the reference's can still ask for the full display (the
+        trigger's force saturates), and such a grasp is felt as held.  None without
+        pressure ratios (a hand without tactile cells)."""
         return tuple(g for g in self.grasps
                      if math.isfinite(g.felt_ratio) and math.isfinite(g.pressure_ratio)
-                     and g.felt_ratio >= FELT_AS_REFERENCE and g.pressure_ratio < HELD_UNDER)
+                     and g.felt_ratio >= FELT_AS_REFERENCE and g.pressure_ratio < HELD_UNDER
+                     and not g.measured_force_n >= HELD_UNDER * g.felt_force_n)
 
     @property
     def weakest(self) -> GraspStats | None:
@@ -121,7 +129,8 @@ class GraspSeries:
                  "peak_pressure": g.peak_pressure, "closure_rad": g.closure_rad,
                  "felt_force_n": g.felt_force_n, "pressure_ratio": g.pressure_ratio,
                  "closure_ratio": g.closure_ratio, "felt_ratio": g.felt_ratio,
-                 "peak_closure_rad": g.peak_closure_rad}
+                 "peak_closure_rad": g.peak_closure_rad,
+                 "measured_force_n": g.measured_force_n}
                 for g in self.grasps]
 
 
@@ -172,9 +181,11 @@ def _ratio(v: float, first: float) -> float:
 
 def analyse_grasps(t_s: Array, trigger_m: Array, pressure: Array, finger_rad: Array,
                    displayed_force_n: Array, threshold_m: float,
-                   hold_s: float = HOLD_S) -> GraspSeries:
+                   hold_s: float = HOLD_S,
+                   measured_force_n: Array | None = None) -> GraspSeries:
     """Per-grasp peak pressure, closure (held ``hold_s``) and felt force, and each over the
-    first grasp's.
+    first grasp's; with ``measured_force_n`` (the controller's measured-force command as the
+    master received it), its peak per grasp.
 
     ``pressure``: (n, k) taxels; ``finger_rad``: (n, fingers) joint angles.
     """
@@ -182,17 +193,21 @@ def analyse_grasps(t_s: Array, trigger_m: Array, pressure: Array, finger_rad: Ar
     p = np.nan_to_num(np.asarray(pressure, float).reshape(len(t), -1), nan=0.0)
     q = np.nan_to_num(np.asarray(finger_rad, float).reshape(len(t), -1), nan=-np.inf)
     f = np.nan_to_num(np.asarray(displayed_force_n, float), nan=0.0)
+    fm = (None if measured_force_n is None
+          else np.nan_to_num(np.asarray(measured_force_n, float), nan=0.0))
     raw = []
     for a, b in grasp_windows(t, trigger_m, threshold_m):
         m = (t >= a) & (t < b) if b > a else (t >= a)
         raw.append((a, b, float(p[m].max(initial=0.0)), held_max(t[m], q[m], hold_s),
-                    float(f[m].max(initial=0.0)), float(q[m].max(initial=-np.inf))))
+                    float(f[m].max(initial=0.0)), float(q[m].max(initial=-np.inf)),
+                    math.nan if fm is None else float(fm[m].max(initial=0.0))))
     if not raw:
         return GraspSeries(())
-    _, _, p0, q0, f0, _ = raw[0]
+    _, _, p0, q0, f0, _, _ = raw[0]
     return GraspSeries(tuple(
-        GraspStats(i, a, b, pk, cl, fe, _ratio(pk, p0), _ratio(cl, q0), _ratio(fe, f0), top)
-        for i, (a, b, pk, cl, fe, top) in enumerate(raw)))
+        GraspStats(i, a, b, pk, cl, fe, _ratio(pk, p0), _ratio(cl, q0), _ratio(fe, f0), top,
+                   fmeas)
+        for i, (a, b, pk, cl, fe, top, fmeas) in enumerate(raw)))
 
 
 def grasp_threshold_m(cfg: TeleopConfig) -> float:
@@ -202,14 +217,16 @@ def grasp_threshold_m(cfg: TeleopConfig) -> float:
 
 
 def curl_grasps(t_s: Array, trigger_m: Array, pressure: Array, proximal_rad: Array,
-                distal_rad: Array, displayed_force_n: Array, threshold_m: float) -> GraspSeries:
+                distal_rad: Array, displayed_force_n: Array, threshold_m: float,
+                measured_force_n: Array | None = None) -> GraspSeries:
     """:func:`analyse_grasps` where a finger's closure is its curl, proximal + distal ((n,
     fingers) each): how far the tendon closed it.  The proximal angle alone is how an
     underactuated finger shares that curl between its links, which differs between grasps of
     equal force (the hard operator on the block: 0.078-0.091 rad at 4,992-4,995 each) and
     overshoots for a sample at an impact."""
     curl = np.asarray(proximal_rad, float) + np.asarray(distal_rad, float)
-    return analyse_grasps(t_s, trigger_m, pressure, curl, displayed_force_n, threshold_m)
+    return analyse_grasps(t_s, trigger_m, pressure, curl, displayed_force_n, threshold_m,
+                          measured_force_n=measured_force_n)
 
 
 def format_grasps(series: GraspSeries, every: int = 1,

@@ -247,7 +247,8 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
     dist = np.column_stack([_held(h, t, f"distal_angle_rad_f{i}") for i in (1, 2, 3)])
     trigger = m.column("trigger_position_m")
     grasps = curl_grasps(t, trigger, pressure, prox, dist, m.column("displayed_force_n"),
-                         threshold_m)
+                         threshold_m, m.column("force_command_n")
+                         if m.has("force_command_n") else None)
     closed = np.nan_to_num(trigger, nan=0.0) > threshold_m
     stores = [("master tank", m.column("tank_j")), ("hand tank", _held(h, t, "tank_j"))]
     if c is not None:

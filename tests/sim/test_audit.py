@@ -95,3 +95,55 @@ def test_release_gives_back_the_stored_energy() -> None:
     assert before[1] == 0.0 and before[3] == 0.0  # out of contact again
     assert taken > 0.5 * out  # the object's spring pushed back most of it
     assert out - taken >= -1e-9  # a passive object never gives more than it got
+
+
+def _bed_energy_j(st: object, fp: object, obj: ContactObject, n: int = 4001) -> float:
+    """The energy a block holds, from the contact law's own definition, integrated here: a
+    bed of springs along each pad, ``k`` (and past the core's depth ``k_core``) per unit of
+    pad fraction, each element pressed to its own depth (the pad is straight, so the depth
+    is linear along it); quadrature over ``n`` points, independent of sim.audit."""
+    from sim.readout import distal_origin
+
+    po = fp.pad_offset_m  # type: ignore[attr-defined]
+    phi = st.prox_rad  # type: ignore[attr-defined]
+    c, s = math.cos(phi), math.sin(phi)
+    x, y, ca, sa = distal_origin(st, fp)  # type: ignore[arg-type]
+    ax, ay = x - sa * po, y + ca * po
+    pads = (((0.010, po), (fp.proximal_rigid_m, po)),  # type: ignore[attr-defined]
+            ((ax, ay), (ax + ca * fp.distal_length_m, ay + sa * fp.distal_length_m)))  # type: ignore[attr-defined]
+    total = 0.0
+    for (x0, y0), (x1, y1) in pads:
+        d0 = s * x0 + c * y0 - obj.y_m  # depth (world y past the face) at the two ends
+        d1 = s * x1 + c * y1 - obj.y_m
+        h = 1.0 / (n - 1)
+        for i in range(n):
+            d = d0 + (d1 - d0) * i * h
+            if d <= 0.0:
+                continue
+            e = 0.5 * obj.stiffness_n_per_m * d * d
+            e += 0.5 * obj.core_stiffness_n_per_m * max(d - obj.core_depth_m, 0.0) ** 2
+            total += e * (0.5 if i in (0, n - 1) else 1.0) * h
+    return total
+
+
+@pytest.mark.xfail(strict=True, reason="known defect (2026-11-28): on a block the audit "
+                   "counts force times the change of the pressed part's mean depth, not the "
+                   "bed of springs' energy; with a tilted pad it reads ~half of what the block "
+                   "holds (docs/controllers.md, 'Hard squeezes over ten minutes')")
+def test_pressing_a_block_stores_what_the_audit_counts() -> None:
+    """Without contact damping the net work on a block is the energy its bed of springs
+    holds, whatever the pad's tilt.  The distal pad meets the face tip first, tilted, and is
+    held there by the servo; measured: the audit counts 0.10 J, the bed holds 0.19 J."""
+    fp = default_finger_params()
+    obj = ContactObject(kind="block", damping_n_s_per_m=0.0)
+    st = initial_finger_state(fp)
+    before = pad_depths(st, fp, obj)
+    net = 0.0
+    for _ in range(3000):
+        st = finger_step(st, MotorCommand("position", 2.5 * 1.42), fp, obj, EffectSet(), 1e-3)
+        after = pad_depths(st, fp, obj)
+        net += object_work_j(before, after, obj, 1e-3)
+        before = after
+    stored = _bed_energy_j(st, fp, obj)
+    assert stored > 0.05  # really pressed
+    assert math.isclose(net, stored, rel_tol=0.02)

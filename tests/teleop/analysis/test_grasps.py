@@ -120,3 +120,21 @@ def test_felt_not_held_needs_a_full_feel_and_a_weak_grip() -> None:
     # 1: felt in full at 0.3 of the pressure; 4: felt at the threshold at 0.1. Not 2 (felt as
     # weak as it was held), 3 (half the pressure is weak, not absent), 5 (no pressure ratio)
     assert [x.index for x in s.felt_not_held] == [1, 4]
+
+
+def test_felt_not_held_only_where_the_pressure_asked_for_less_than_was_felt() -> None:
+    """With the measured-force command recorded: a third of the pressure that still asked
+    for the full display (the trigger's force saturates) was felt as held; one that asked
+    for under half of what was felt was not."""
+    from teleop.analysis.grasps import GraspSeries, GraspStats
+
+    def g(i: int, p: float, measured_n: float) -> GraspStats:
+        return GraspStats(index=i, t_start_s=4.5 * i, t_end_s=4.5 * i + 4.5,
+                          peak_pressure=4000.0 * p, closure_rad=0.9, felt_force_n=8.0,
+                          pressure_ratio=p, closure_ratio=1.0, felt_ratio=1.0,
+                          measured_force_n=measured_n)
+
+    s = GraspSeries((g(0, 1.0, 8.0), g(1, 0.3, 8.0), g(2, 0.3, 2.0), g(3, 0.3, 4.0),
+                     g(4, 0.3, 3.99), g(5, 0.6, 1.0)))
+    # 1 asked for 8 N; 3 for half of the 8 N felt (the boundary); 5 held 0.6 of the pressure
+    assert [x.index for x in s.felt_not_held] == [2, 4]

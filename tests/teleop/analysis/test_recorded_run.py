@@ -23,7 +23,8 @@ PEAKS = (600.0, 610.0, 300.0, 605.0)
 def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = None,
                drop: str | None = None, master_gap: tuple[float, float] | None = None,
                hand_gap: tuple[float, float] | None = None,
-               peaks: tuple[float, ...] = PEAKS) -> None:
+               peaks: tuple[float, ...] = PEAKS,
+               commands: tuple[float, ...] | None = None) -> None:
     t = np.arange(0.0, 20.0, 0.01) + 3.0  # services start after the launcher's epoch
     if master_gap is not None:  # the master's process stalled: no rows in (a, b)
         t = t[(t <= master_gap[0]) | (t >= master_gap[1])]
@@ -36,6 +37,9 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
     master = {"t_s": t, "trigger_position_m": np.where(closed, 0.012, 0.0),
               "displayed_force_n": np.where(closed, 8.0, 0.0), "tank_j": tank,
               "watchdog": np.zeros_like(t)}
+    if commands is not None:  # the controller's measured-force command, per grasp
+        master["force_command_n"] = np.where(closed, np.array(commands)[np.clip(k, 0, 3)],
+                                             0.0)
     if drop:
         master.pop(drop)
     meta = (("role", "master"), ("grasp_threshold_m", f"{THRESHOLD_M:g}")) \
@@ -122,6 +126,23 @@ def test_a_grasp_felt_in_full_but_not_held_is_named(tmp_path: Path,
     assert judge_recorded_run(read_run_dir(weak), THRESHOLD_M).judged.felt_not_held == ()
     assert main(["grasps", str(weak)]) == 0
     assert "felt, not held" not in capsys.readouterr().out
+
+
+def test_a_weak_grip_that_still_asks_for_the_full_display_is_felt_as_held(
+        tmp_path: Path) -> None:
+    """With the measured-force command recorded: the third grasp at a third of the first's
+    pressure whose pressure still asked for the 8 N shown (the display saturates) is not
+    named; the same grasp asking for 2 N is."""
+    held = tmp_path / "held"
+    held.mkdir()
+    _write_run(held, peaks=(600.0, 610.0, 200.0, 605.0), commands=(8.0, 8.0, 8.0, 8.0))
+    assert judge_recorded_run(read_run_dir(held), THRESHOLD_M).judged.felt_not_held == ()
+    ghost = tmp_path / "ghost"
+    ghost.mkdir()
+    _write_run(ghost, peaks=(600.0, 610.0, 200.0, 605.0), commands=(8.0, 8.0, 2.0, 8.0))
+    r = judge_recorded_run(read_run_dir(ghost), THRESHOLD_M)
+    assert [g.index for g in r.judged.felt_not_held] == [2]
+    assert r.judged.grasps[2].measured_force_n == 2.0
 
 
 def test_cli_floor_and_json(run_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:

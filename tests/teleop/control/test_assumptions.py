@@ -126,6 +126,29 @@ def test_cells_reading_almost_nothing_break_the_bound_before_the_alarm() -> None
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
 
 
+#: the yielding push under a stiffer, quicker operator (3,000 N/m, a 4 s grasp)
+FIRM_PUSH = replace(PUSH, op_stiffness=3000.0, ref_period_s=4.0)
+
+
+def test_cells_reading_a_third_break_the_bound_under_a_firmer_operator() -> None:
+    """Outside what the guard covers (measured 2026-11-28, kept so a change shows): the push
+    that stays passive above with cells reading a third, made by a firmer operator.  Two
+    flat chords flag the fingers only ~3 s into the push, all of it charged at the cells'
+    ``m g`` = 0.38 of its work (the guard's stated gap, "the advance before the flag"): by
+    then the object has taken 0.19 J against 0.07 J charged, and the loop's margin runs out
+    by 2 mJ as the operator opens (0.1 J tanks).  Passive with cells reading half (margin
+    0.04 J) and with true cells.  With the guard alone, passivity at a third depends on the
+    operator; in the full system the gain cross-check, which needs the servo's load (this
+    harness has none), flags such cells within the first grasp
+    (tests/services/test_yield_guard_lockstep.py)."""
+    r = run(P, replace(FIRM_PUSH, sensor_gain_factor=1.0 / 3.0))
+    assert r.yielding_hand == 3
+    assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+    assert audit_failure(run(P, replace(FIRM_PUSH, sensor_gain_factor=0.5)),
+                         initial_tank_j(SUITE, P)) == ""
+    assert audit_failure(run(P, FIRM_PUSH), initial_tank_j(SUITE, P)) == ""
+
+
 def test_a_contact_the_cells_do_not_see_is_not_charged() -> None:
     """The assumption "contact is seen by the cells" broken: readings below the cells'
     noise floor on the yielding object.  This harness's finger is one link (motor and
