@@ -9,9 +9,13 @@ of the pad, never a pull), plus ``k_core s (d - d_core)`` past its rigid core's 
 energy it takes from a finger over a physics step in which the depth goes from ``d0`` to
 ``d1`` is the force times the depth change: trapezoidal in the elastic part on each side of
 the core's depth (exact for this piecewise-linear spring), the damper at the mean rate ``(d1
-- d0) / dt``.  A block's core is met element by element (``sim.contact.block_core``): its
-springs ``k_core s_c d_c`` act on the part of the pad pressed past the core (fraction ``s_c``,
-mean depth ``d_c`` past it), and their work is counted the same way on ``d_c``
+- d0) / dt``.  That is exact for a point contact (a cylinder).  A block is a bed of springs
+along the pad, each element pressed to its own depth: an elastic block's skin and core
+(``sim.contact.block_core``: met element by element) are counted as the change of the energy
+the bed holds (:func:`bed_energy_j`), whose gradient the block's contact law is; force times
+the change of the pressed part's *mean* depth, counted until 2026-11-28, read about half of
+it for a pad pressed in tilted.  A yielding block is still counted that way (its dent is per
+pad), the core's springs ``k_core s_c d_c`` on the mean depth ``d_c`` past the core
 (:func:`core_work_j`).
 A yielding object (``yield_force_n > 0``, :mod:`sim.crush`) pushes back with its skin's spring
 on the elastic depth ``d - dent`` (held at the yield level while the dent grows) and its damper
@@ -43,9 +47,40 @@ _PROX_PAD_START_M = 0.010  # where the proximal pad starts along the link (as si
 
 #: (stiffness scale, depth m) of the proximal and distal pads, then their dents m (a yielding
 #: object's; 0 for an elastic one), then (engaged fraction, mean depth m) of the parts of the
-#: proximal and distal pads pressed past a block's core (0 for a cylinder)
-PadDepths = tuple[float, float, float, float, float, float, float, float, float, float]
-NO_CONTACT: PadDepths = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+#: proximal and distal pads pressed past a block's core (0 for a cylinder), then the energy J
+#: an elastic block's bed of springs holds under the proximal and the distal pad
+#: (:func:`bed_energy_j`; 0 otherwise)
+PadDepths = tuple[float, float, float, float, float, float, float, float, float, float, float,
+                  float]
+NO_CONTACT: PadDepths = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def squared_depth_integral(a_m: float, b_m: float) -> float:
+    """``int_0^1 max(a + (b - a) u, 0)^2 du`` (m^2): the squared depth of a straight pad
+    whose depth goes linearly from ``a_m`` to ``b_m`` along it, over the pad's fraction."""
+    if a_m > 0.0 and b_m > 0.0:
+        return (a_m * a_m + a_m * b_m + b_m * b_m) / 3.0
+    if b_m > 0.0:
+        return b_m * b_m * b_m / (3.0 * (b_m - a_m))
+    if a_m > 0.0:
+        return a_m * a_m * a_m / (3.0 * (a_m - b_m))
+    return 0.0
+
+
+def bed_energy_j(obj: ContactObject, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+                 by: float) -> float:
+    """Energy an elastic block holds under a straight pad A->B (proximal frame): its bed of
+    springs, ``k`` per unit of pad fraction and ``k_core`` more past the core's depth, each
+    element pressed to its own depth, ``int k d^2 / 2 + k_core (d - d_core)^2 / 2`` over the
+    pad (closed form: the depth is linear along it).  The block's contact law
+    (``sim.crush.block_law``: ``k s d_mean`` at the pressed part's centroid, plus the core's
+    springs at theirs) is this energy's gradient, so the work a pad does on the block between
+    two states is its difference."""
+    pa = sphi * ax + cphi * ay - obj.y_m
+    pb = sphi * bx + cphi * by - obj.y_m
+    dc = obj.core_depth_m
+    return 0.5 * (obj.stiffness_n_per_m * squared_depth_integral(pa, pb)
+                  + obj.core_stiffness_n_per_m * squared_depth_integral(pa - dc, pb - dc))
 
 
 def pad_depths(state: FingerState, p: FingerParams, obj: ContactObject) -> PadDepths:
@@ -63,7 +98,7 @@ def pad_depths(state: FingerState, p: FingerParams, obj: ContactObject) -> PadDe
     s_d, d_d, _, _, _ = pad_contact(obj, cphi, sphi, ax, ay, bx, by)
     d_p = max(d_p, 0.0)
     d_d = max(d_d, 0.0)
-    cs_p = cd_p = cs_d = cd_d = 0.0
+    cs_p = cd_p = cs_d = cd_d = e_p = e_d = 0.0
     if obj.kind == "block":
         cs_p, cd_p, _ = block_core(obj, cphi, sphi, _PROX_PAD_START_M, po, p.proximal_rigid_m,
                                    po)
@@ -71,8 +106,11 @@ def pad_depths(state: FingerState, p: FingerParams, obj: ContactObject) -> PadDe
     if obj.yield_force_n > 0.0:
         crush_p, crush_d = state.crush_m
         return (s_p, d_p, s_d, d_d, pad_dent(obj, crush_p, d_p), pad_dent(obj, crush_d, d_d),
-                cs_p, cd_p, cs_d, cd_d)
-    return (s_p, d_p, s_d, d_d, 0.0, 0.0, cs_p, cd_p, cs_d, cd_d)
+                cs_p, cd_p, cs_d, cd_d, 0.0, 0.0)
+    if obj.kind == "block":
+        e_p = bed_energy_j(obj, cphi, sphi, _PROX_PAD_START_M, po, p.proximal_rigid_m, po)
+        e_d = bed_energy_j(obj, cphi, sphi, ax, ay, bx, by)
+    return (s_p, d_p, s_d, d_d, 0.0, 0.0, cs_p, cd_p, cs_d, cd_d, e_p, e_d)
 
 
 def _pad_work(s0: float, d0: float, s1: float, d1: float, obj: ContactObject,
@@ -87,11 +125,30 @@ def _pad_work(s0: float, d0: float, s1: float, d1: float, obj: ContactObject,
     return force * dd
 
 
+def _bed_work(b: PadDepths, a: PadDepths, i: int, obj: ContactObject, dt_s: float) -> float:
+    """Work pad ``i`` (0 proximal, 1 distal) did on an elastic block over one step: the
+    change of the energy its bed of springs holds, plus the damper on the pressed part's mean
+    depth rate; nothing while the contact force is clamped off (never a pull)."""
+    s0, d0, s1, d1 = b[2 * i], b[2 * i + 1], a[2 * i], a[2 * i + 1]
+    if d0 <= 0.0 and d1 <= 0.0:
+        return 0.0
+    dd = d1 - d0
+    elastic = (mean_spring_force(obj, s0, d0, s1, d1, False) + obj.core_stiffness_n_per_m
+               * 0.5 * (b[6 + 2 * i] * b[7 + 2 * i] + a[6 + 2 * i] * a[7 + 2 * i]))
+    damping = obj.damping_n_s_per_m * 0.5 * (s0 + s1) * dd / dt_s if dt_s > 0.0 else 0.0
+    if elastic + damping <= 0.0:
+        return 0.0
+    return (a[10 + i] - b[10 + i]) + damping * dd
+
+
 def object_work_j(before: PadDepths, after: PadDepths, obj: ContactObject,
                   dt_s: float) -> float:
     """Work the finger did on the object over one physics step (+ delivered, - taken)."""
     if obj.kind == "none":
         return 0.0
+    if obj.kind == "block" and obj.yield_force_n <= 0.0:
+        return (_bed_work(before, after, 0, obj, dt_s)
+                + _bed_work(before, after, 1, obj, dt_s))
     core = obj.kind != "block"  # a block's core: its own springs, element by element
     if obj.yield_force_n > 0.0:
         w = (yield_pad_work_j(before[0], before[1], before[4], after[0], after[1], after[4],
@@ -117,4 +174,5 @@ def core_work_j(s0: float, d0: float, s1: float, d1: float, obj: ContactObject) 
     return kc * 0.5 * (s0 * d0 + s1 * d1) * (d1 - d0)
 
 
-__all__ = ["NO_CONTACT", "PadDepths", "core_work_j", "object_work_j", "pad_depths"]
+__all__ = ["NO_CONTACT", "PadDepths", "bed_energy_j", "core_work_j", "object_work_j",
+           "pad_depths", "squared_depth_integral"]

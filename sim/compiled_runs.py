@@ -58,11 +58,35 @@ def run_finger(x: np.ndarray, cmds: np.ndarray, dts: np.ndarray, k: np.ndarray,
 
 
 @njit(cache=True)
+def squared_depth_integral(a: float, b: float) -> float:
+    """``sim.audit.squared_depth_integral``."""
+    if a > 0.0 and b > 0.0:
+        return (a * a + a * b + b * b) / 3.0
+    if b > 0.0:
+        return b * b * b / (3.0 * (b - a))
+    if a > 0.0:
+        return a * a * a / (3.0 * (a - b))
+    return 0.0
+
+
+@njit(cache=True)
+def bed_energy(o: np.ndarray, cphi: float, sphi: float, ax: float, ay: float, bx: float,
+               by: float) -> float:
+    """``sim.audit.bed_energy_j`` over the object array."""
+    pa = sphi * ax + cphi * ay - o[2]
+    pb = sphi * bx + cphi * by - o[2]
+    dc = o[6]
+    return 0.5 * (o[4] * squared_depth_integral(pa, pb)
+                  + o[7] * squared_depth_integral(pa - dc, pb - dc))
+
+
+@njit(cache=True)
 def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray
-               ) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+               ) -> tuple[float, float, float, float, float, float, float, float, float, float,
+                          float, float]:
     """``sim.audit.pad_depths`` over the arrays."""
     if o[0] == 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     phi = x[X_PHI]
     cphi = math.cos(phi)
     sphi = math.sin(phi)
@@ -94,8 +118,13 @@ def pad_depths(x: np.ndarray, k: np.ndarray, o: np.ndarray
         cs_d, cd_d, _ = block_core(o, cphi, sphi, ax, ay, bx, by)
     if o[8] > 0.0:
         return (s_p, d_p, s_d, d_d, pad_dent(o, x[X_CRUSH], d_p),
-                pad_dent(o, x[X_CRUSH + 1], d_d), cs_p, cd_p, cs_d, cd_d)
-    return s_p, d_p, s_d, d_d, 0.0, 0.0, cs_p, cd_p, cs_d, cd_d
+                pad_dent(o, x[X_CRUSH + 1], d_d), cs_p, cd_p, cs_d, cd_d, 0.0, 0.0)
+    e_p = 0.0
+    e_d = 0.0
+    if o[0] == KIND_BLOCK:
+        e_p = bed_energy(o, cphi, sphi, k[K_PADSTART], po, k[K_PROX], po)
+        e_d = bed_energy(o, cphi, sphi, ax, ay, bx, by)
+    return s_p, d_p, s_d, d_d, 0.0, 0.0, cs_p, cd_p, cs_d, cd_d, e_p, e_d
 
 
 @njit(cache=True)
@@ -109,6 +138,21 @@ def _pad_work(s0: float, d0: float, s1: float, d1: float, o: np.ndarray, dt: flo
     damping = cc * 0.5 * (s0 + s1) * dd / dt if dt > 0.0 else 0.0
     force = max(elastic + damping, 0.0)
     return force * dd
+
+
+@njit(cache=True)
+def bed_work(s0: float, d0: float, cs0: float, cd0: float, e0: float, s1: float, d1: float,
+             cs1: float, cd1: float, e1: float, o: np.ndarray, dt: float) -> float:
+    """``sim.audit._bed_work`` of one pad over the object array."""
+    if d0 <= 0.0 and d1 <= 0.0:
+        return 0.0
+    dd = d1 - d0
+    elastic = (mean_spring_force(o, s0, d0, s1, d1, False)
+               + o[7] * 0.5 * (cs0 * cd0 + cs1 * cd1))
+    damping = o[5] * 0.5 * (s0 + s1) * dd / dt if dt > 0.0 else 0.0
+    if elastic + damping <= 0.0:
+        return 0.0
+    return (e1 - e0) + damping * dd
 
 
 @njit(cache=True)
@@ -150,12 +194,12 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
     speed]); with ``audit`` the work on the object is added to ``delivered``/``taken`` per
     finger at every step, as ``SimHand.read`` does.  Returns the steps taken."""
     nf = xs.shape[0]
-    depths = np.zeros((nf, 10))
+    depths = np.zeros((nf, 12))
     if audit:
         for i in range(nf):
             b = depths[i]
-            (b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8],
-             b[9]) = pad_depths(xs[i], k, objs[i])
+            (b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9], b[10],
+             b[11]) = pad_depths(xs[i], k, objs[i])
     done = 0
     work = work_array(k)
     for _ in range(steps):
@@ -169,21 +213,26 @@ def run_hand(xs: np.ndarray, cs: np.ndarray, pre: np.ndarray, pre_goal: float, h
         if audit:
             for i in range(nf):
                 o = objs[i]
-                (s_p, d_p, s_d, d_d, c_p, c_d, cs_p, cd_p, cs_d,
-                 cd_d) = pad_depths(xs[i], k, o)
+                (s_p, d_p, s_d, d_d, c_p, c_d, cs_p, cd_p, cs_d, cd_d, e_p,
+                 e_d) = pad_depths(xs[i], k, o)
                 b = depths[i]
                 core = o[0] != KIND_BLOCK
                 if o[8] > 0.0:
                     w = (yield_pad_work(b[0], b[1], b[4], s_p, d_p, c_p, o, dt, core)
                          + yield_pad_work(b[2], b[3], b[5], s_d, d_d, c_d, o, dt, core))
+                    if not core:
+                        w = (w + core_work(b[6], b[7], cs_p, cd_p, o)
+                             + core_work(b[8], b[9], cs_d, cd_d, o))
+                elif not core:  # an elastic block: its bed of springs' energy
+                    w = (bed_work(b[0], b[1], b[6], b[7], b[10], s_p, d_p, cs_p, cd_p, e_p, o,
+                                  dt)
+                         + bed_work(b[2], b[3], b[8], b[9], b[11], s_d, d_d, cs_d, cd_d, e_d,
+                                    o, dt))
                 else:
                     w = (_pad_work(b[0], b[1], s_p, d_p, o, dt, core)
                          + _pad_work(b[2], b[3], s_d, d_d, o, dt, core))
-                if not core:
-                    w = (w + core_work(b[6], b[7], cs_p, cd_p, o)
-                         + core_work(b[8], b[9], cs_d, cd_d, o))
                 b[0], b[1], b[2], b[3], b[4], b[5] = s_p, d_p, s_d, d_d, c_p, c_d
-                b[6], b[7], b[8], b[9] = cs_p, cd_p, cs_d, cd_d
+                b[6], b[7], b[8], b[9], b[10], b[11] = cs_p, cd_p, cs_d, cd_d, e_p, e_d
                 if w > 0.0:
                     delivered[i] += w
                 else:
