@@ -29,9 +29,10 @@ from teleop.config import load_config
 pytestmark = pytest.mark.slow
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: the hand's pad-work estimate charges "
-                   "~100x the object's work on a hard squeeze of the block; the stores run "
-                   "out after ~18 grasps (docs/controllers.md, 'Hard squeezes over ten minutes')")
+@pytest.mark.xfail(strict=True, reason="known defect: the hand's pad-work estimate reads a "
+                   "hard squeeze of the block 6-7x both ways and keeps ~0.6 J a squeeze (0.41 "
+                   "J a grasp charged, 1.4 mJ net taken); the stores run out after ~18 grasps "
+                   "(docs/controllers.md, 'Hard squeezes over ten minutes')")
 def test_the_hard_operators_grasps_on_the_block_hold_for_two_minutes() -> None:
     cfg = load_config(None, ["master.virtual.style=hard", "hand.sim.object.kind=block"])
     r = run_lockstep(cfg, 120.0, seed=1)
