@@ -11,6 +11,9 @@ from sim.audit import object_work_j, pad_depths
 from sim.contact import ContactObject
 from sim.finger import MotorCommand, default_finger_params, finger_step, initial_finger_state
 from sim.operator import OperatorParams, OperatorState, operator_step
+from sim.params import FingerParams
+from sim.readout import distal_origin
+from sim.state import FingerState
 from teleop.effects import EffectSet
 
 
@@ -97,20 +100,18 @@ def test_release_gives_back_the_stored_energy() -> None:
     assert out - taken >= -1e-9  # a passive object never gives more than it got
 
 
-def _bed_energy_j(st: object, fp: object, obj: ContactObject, n: int = 4001) -> float:
+def _bed_energy_j(st: FingerState, fp: FingerParams, obj: ContactObject,
+                  n: int = 4001) -> float:
     """The energy a block holds, from the contact law's own definition, integrated here: a
     bed of springs along each pad, ``k`` (and past the core's depth ``k_core``) per unit of
     pad fraction, each element pressed to its own depth (the pad is straight, so the depth
     is linear along it); quadrature over ``n`` points, independent of sim.audit."""
-    from sim.readout import distal_origin
-
-    po = fp.pad_offset_m  # type: ignore[attr-defined]
-    phi = st.prox_rad  # type: ignore[attr-defined]
-    c, s = math.cos(phi), math.sin(phi)
-    x, y, ca, sa = distal_origin(st, fp)  # type: ignore[arg-type]
+    po = fp.pad_offset_m
+    c, s = math.cos(st.prox_rad), math.sin(st.prox_rad)
+    x, y, ca, sa = distal_origin(st, fp)
     ax, ay = x - sa * po, y + ca * po
-    pads = (((0.010, po), (fp.proximal_rigid_m, po)),  # type: ignore[attr-defined]
-            ((ax, ay), (ax + ca * fp.distal_length_m, ay + sa * fp.distal_length_m)))  # type: ignore[attr-defined]
+    pads = (((0.010, po), (fp.proximal_rigid_m, po)),
+            ((ax, ay), (ax + ca * fp.distal_length_m, ay + sa * fp.distal_length_m)))
     total = 0.0
     for (x0, y0), (x1, y1) in pads:
         d0 = s * x0 + c * y0 - obj.y_m  # depth (world y past the face) at the two ends
