@@ -39,6 +39,7 @@ from teleop.control.transparency_layer import (
 from teleop.control.yield_guard import (
     NO_CONTACT,
     YieldTrack,
+    flag_recharge_j,
     pad_advance_m,
     step_yield,
     yield_charge_j,
@@ -156,13 +157,14 @@ def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...]
     and the pads' force-weighted advance driven by the proximal joint over the sample."""
     before = s.pads or pads
     t = p.tactile
+    x_prev = s.x_prev or x
     out = []
-    for g, a, b, x_i in zip(s.yields, before, pads, x, strict=False):
+    for g, a, b, x_i, w_i in zip(s.yields, before, pads, x, x_prev, strict=False):
         adv = pad_advance_m((b.prox_force_n, b.dist_force_n), (b.prox_x_m, b.dist_x_m),
                             b.proximal_rad - a.proximal_rad, b.distal_rad,
                             t.proximal_length_m)
         out.append(step_yield(g, b.prox_force_n + b.dist_force_n, adv, x_i,
-                              t.yield_window_m, t.yield_stiffness_ratio))
+                              t.yield_window_m, t.yield_stiffness_ratio, w_i))
     return tuple(out)
 
 
@@ -201,6 +203,9 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     # motion is charged at the servo's torque (teleop.control.yield_guard, .stall_guard)
     crush = (yield_charge_j(x, s.x_prev, blind, p.servo_torque_max_nm)
              if s.x_prev is not None else 0.0)
+    # a finger just flagged: its advance before the flag, which the cells were trusted for,
+    # at the servo's torque too (outside the one-sample cap: past samples' work)
+    flagged = flag_recharge_j(s.yields, yields, p.servo_torque_max_nm)
     # one sample cannot deliver more than the fingers held at its start (servo potential,
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that
@@ -212,7 +217,7 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     if recharge > 0.0:  # past samples' work at the raised scale: outside the one-sample cap
         before, net = margin_charge_j(p.tactile, net), net + recharge
         charge += margin_charge_j(p.tactile, net) - before
-    charge += crush
+    charge += crush + flagged
     out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)

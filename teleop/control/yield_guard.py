@@ -36,10 +36,13 @@ sliding and its tactile estimate is not relied on).
 What it cannot see: physics that absorbs energy while its force keeps rising at least at
 ``yield_stiffness_ratio`` of its initial stiffness (a strongly work-hardening material with
 cells reading low); crushing done by the distal link alone while the proximal joint stands
-still; and the advance before the flag, charged by the cells (``(1 - m g)`` of its work
-short): two windows on a clear yield, but longer while the force keeps creeping up (cells
-reading a millionth in the harness: flagged ~2.5 s into the push, after the bound broke).
-All are stated in docs/controllers.md.
+still; and, until the flag is raised, the advance before it, charged by the cells (``(1 -
+m g)`` of its work short): two windows on a clear yield, but longer while the force keeps
+creeping up.  When the flag is raised the tank pays for that advance again at the servo's
+torque (:func:`flag_recharge_j`: ``tau_max`` times the motor's winding over the episode),
+so the shortfall is made good from then on; energy the loop handed out *before* the flag on
+the strength of it is not (cells reading a millionth in the harness: flagged ~2.5 s into
+the push, after the bound broke).  All are stated in docs/controllers.md.
 """
 
 from __future__ import annotations
@@ -60,6 +63,7 @@ class YieldTrack:
     anchor_motor_rad: float = 0.0  # motor angle (joint side) there
     low_chords: int = 0  # flat chords in a row
     yielding: bool = False  # latched until the contact ends
+    wound_rad: float = 0.0  # the motor's inward motion (joint side) over the episode
 
 
 NO_CONTACT = YieldTrack()
@@ -69,35 +73,42 @@ LOW_CHORDS = 2
 
 
 def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: float,
-               window_m: float, stiffness_ratio: float) -> YieldTrack:
+               window_m: float, stiffness_ratio: float,
+               motor_prev_rad: float | None = None) -> YieldTrack:
     """One hand sample of one finger: ``force_n`` the estimated total pad force at its end,
     ``advance_m`` the pads' force-weighted advance into the object over it
-    (:func:`pad_advance_m`), ``motor_rad`` its motor angle (joint side).  A chord is only
+    (:func:`pad_advance_m`), ``motor_rad`` its motor angle (joint side) at its end and
+    ``motor_prev_rad`` at its start (None: not known, no winding counted).  A chord is only
     judged while the motor wound in over it: a force falling while the servo lets go is an
-    unloading, not a yield."""
+    unloading, not a yield.  The episode's winding (the motor's inward motion, the sample
+    in which the force was first seen included) is what :func:`flag_recharge_j` charges
+    when the flag is raised."""
     if force_n <= 0.0:
         return NO_CONTACT
+    wound = (prev.wound_rad if prev.in_contact else 0.0) + (
+        max(motor_rad - motor_prev_rad, 0.0) if motor_prev_rad is not None else 0.0)
     if not prev.in_contact:
         # the episode begins where the force is first seen: chords are measured from here
         # (the force jumps from zero at the first reading; that step is not a stiffness)
-        return YieldTrack(in_contact=True, anchor_n=force_n, anchor_motor_rad=motor_rad)
+        return YieldTrack(in_contact=True, anchor_n=force_n, anchor_motor_rad=motor_rad,
+                          wound_rad=wound)
     q = prev.advance_m + advance_m
     span = q - prev.anchor_m
     if span < 0.0:
         # backing out: the next chord starts from the furthest-back point (an elastic
         # contact unloads and reloads along the same curve)
         return YieldTrack(True, q, q, force_n, prev.stiffest_n_per_m, motor_rad, 0,
-                          prev.yielding)
+                          prev.yielding, wound)
     if span < window_m:
         return YieldTrack(True, q, prev.anchor_m, prev.anchor_n, prev.stiffest_n_per_m,
-                          prev.anchor_motor_rad, prev.low_chords, prev.yielding)
+                          prev.anchor_motor_rad, prev.low_chords, prev.yielding, wound)
     chord = (force_n - prev.anchor_n) / span
     stiffest = max(prev.stiffest_n_per_m, chord)
     flat = (stiffness_ratio > 0.0 and stiffest > 0.0 and chord < stiffness_ratio * stiffest
             and motor_rad > prev.anchor_motor_rad)
     low = prev.low_chords + 1 if flat else 0
     return YieldTrack(True, q, q, force_n, stiffest, motor_rad, low,
-                      prev.yielding or low >= LOW_CHORDS)
+                      prev.yielding or low >= LOW_CHORDS, wound)
 
 
 def pad_advance_m(forces_n: tuple[float, float], places_m: tuple[float, float],
@@ -123,4 +134,17 @@ def yield_charge_j(x: tuple[float, ...], x_prev: tuple[float, ...],
                for a, b, y in zip(x, x_prev, yielding, strict=False) if y)
 
 
-__all__ = ["NO_CONTACT", "YieldTrack", "pad_advance_m", "step_yield", "yield_charge_j"]
+def flag_recharge_j(before: tuple[YieldTrack, ...], after: tuple[YieldTrack, ...],
+                    torque_max_nm: float) -> float:
+    """What the tank pays when a finger's flag is raised: ``tau_max`` times the motor's
+    inward motion over the episode before this sample (this sample's is
+    :func:`yield_charge_j`'s), the servo's most work through the tendon over the advance
+    the cells were trusted for.  What the cells charged for that advance is not taken off
+    (the one-sample cap may have cut it, so it is not known to have been paid): the
+    advance before the flag is charged twice over rather than short."""
+    return sum(torque_max_nm * b.wound_rad for b, a in zip(before, after, strict=False)
+               if a.yielding and not b.yielding)
+
+
+__all__ = ["NO_CONTACT", "YieldTrack", "flag_recharge_j", "pad_advance_m", "step_yield",
+           "yield_charge_j"]

@@ -108,8 +108,10 @@ def test_without_the_guard_a_sensor_reading_low_breaks_the_bound(gain: float) ->
 
 
 def test_the_guard_without_its_charge_breaks_the_bound(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Flagging alone is not enough: the yielding finger's advance must be paid for."""
+    """Flagging alone is not enough: the yielding finger's advance must be paid for (both
+    parts of the charge dropped: the advance after the flag and the one before it)."""
     patch_sides(monkeypatch, "yield_charge_j", lambda *a: 0.0)
+    patch_sides(monkeypatch, "flag_recharge_j", lambda *a: 0.0)
     r = run_loop(SUITE, P, replace(PUSH, sensor_gain_factor=1.0 / 3.0))
     assert r.yielding_hand == 3
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
@@ -130,23 +132,29 @@ def test_cells_reading_almost_nothing_break_the_bound_before_the_alarm() -> None
 FIRM_PUSH = replace(PUSH, op_stiffness=3000.0, ref_period_s=4.0)
 
 
-def test_cells_reading_a_third_break_the_bound_under_a_firmer_operator() -> None:
-    """Outside what the guard covers (measured 2026-11-28, kept so a change shows): the push
-    that stays passive above with cells reading a third, made by a firmer operator.  Two
-    flat chords flag the fingers only ~3 s into the push, all of it charged at the cells'
-    ``m g`` = 0.38 of its work (the guard's stated gap, "the advance before the flag"): by
-    then the object has taken 0.19 J against 0.07 J charged, and the loop's margin runs out
-    by 2 mJ as the operator opens (0.1 J tanks).  Passive with cells reading half (margin
-    0.04 J) and with true cells.  With the guard alone, passivity at a third depends on the
-    operator; in the full system the gain cross-check, which needs the servo's load (this
-    harness has none), flags such cells within the first grasp
-    (tests/services/test_yield_guard_lockstep.py)."""
-    r = run(P, replace(FIRM_PUSH, sensor_gain_factor=1.0 / 3.0))
+def test_cells_reading_a_third_stay_passive_under_a_firmer_operator() -> None:
+    """The push made by a firmer operator, which flags the fingers only ~3 s into it.  All
+    that advance was charged at the cells' ``m g`` = 0.38 of its work: by the flag the
+    object had taken 0.19 J against 0.07 J charged, and before the flag's re-charge
+    (:func:`teleop.control.yield_guard.flag_recharge_j`) the loop's margin ran out by 2 mJ
+    as the operator opened (0.1 J tanks).  Now the flag charges the episode's winding at the
+    servo's torque: passive at a third, a half and with true cells."""
+    for gain in (1.0 / 3.0, 0.5):
+        r = run(P, replace(FIRM_PUSH, sensor_gain_factor=gain))
+        assert r.yielding_hand == 3
+        assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
+    assert audit_failure(run(P, FIRM_PUSH), initial_tank_j(SUITE, P)) == ""
+
+
+def test_without_the_flag_recharge_the_firmer_operator_breaks_the_bound(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mutant kept as a test: the advance before the flag left at the cells' charge,
+    the firmer operator's push at a third breaks the bound (by 2 mJ, as the operator
+    opens)."""
+    patch_sides(monkeypatch, "flag_recharge_j", lambda *a: 0.0)
+    r = run_loop(SUITE, P, replace(FIRM_PUSH, sensor_gain_factor=1.0 / 3.0))
     assert r.yielding_hand == 3
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
-    assert audit_failure(run(P, replace(FIRM_PUSH, sensor_gain_factor=0.5)),
-                         initial_tank_j(SUITE, P)) == ""
-    assert audit_failure(run(P, FIRM_PUSH), initial_tank_j(SUITE, P)) == ""
 
 
 def test_a_contact_the_cells_do_not_see_is_not_charged() -> None:

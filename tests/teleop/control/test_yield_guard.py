@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 from teleop.control.yield_guard import (
     NO_CONTACT,
     YieldTrack,
+    flag_recharge_j,
     pad_advance_m,
     step_yield,
     yield_charge_j,
@@ -155,3 +156,31 @@ def test_a_force_falling_while_the_motor_lets_go_is_not_a_yield() -> None:
     unloaded = run(motor_back=True)
     assert unloaded.in_contact and not unloaded.yielding
     assert run(motor_back=False).yielding
+
+
+def test_the_flag_recharges_the_winding_of_the_episode_before_it() -> None:
+    """The episode's winding counts the motor's inward motion from the sample in which the
+    force was first seen (that sample's own motion included), never its backing out; when
+    the flag is raised, :func:`flag_recharge_j` charges ``tau_max`` times the winding before
+    the flagging sample (whose own motion is :func:`yield_charge_j`'s), once."""
+    depths = ramp(0.02, n=400)
+    force = crushing(5000.0, 10.0)
+    g, motor_prev, states = NO_CONTACT, -0.01, []
+    for i, d in enumerate(depths):
+        motor = 10.0 * d - (0.004 if i % 7 == 3 else 0.0)  # now and then a step back
+        g = step_yield(g, force(d), d - depths[max(i - 1, 0)], motor, WINDOW_M, RATIO,
+                       motor_prev)
+        states.append((g, motor, motor_prev))
+        motor_prev = motor
+    flag = next(i for i, (g, _, _) in enumerate(states) if g.yielding)
+    inward = sum(max(m - mp, 0.0) for g, m, mp in states[:flag] if g.in_contact)
+    assert states[flag - 1][0].wound_rad == pytest.approx(inward, rel=1e-12)
+    assert inward > 10.0 * depths[flag - 1]  # the steps back are not netted out
+    before, after = states[flag - 1][0], states[flag][0]
+    assert flag_recharge_j((before,) * 3, (after, NO_CONTACT, before), 2.0) == \
+        pytest.approx(2.0 * inward, rel=1e-12)
+    # already flagged: nothing more; a new episode starts its winding afresh
+    assert flag_recharge_j((after,), (states[flag + 1][0],), 2.0) == 0.0
+    fresh = step_yield(NO_CONTACT, 1.0, 0.0, 0.5, WINDOW_M, RATIO, 0.45)
+    assert fresh.wound_rad == pytest.approx(0.05)
+    assert step_yield(after, 0.0, 0.0, 0.3, WINDOW_M, RATIO, 0.2) == NO_CONTACT
