@@ -33,6 +33,20 @@ reservation (:func:`teleop.control.passivity_layer.reserve_project`) freezes the
 when it is spent, and the hand reports the finger (an alarm: the contact is crushing or
 sliding and its tactile estimate is not relied on).
 
+A contact too brief for two flat chords (a quick grasp: the pads crush the object for less
+than two windows, then let go) is judged once more when it ends, by the set it left
+(:func:`took_a_set`): an elastic contact unloads along the path it loaded on, so its force
+runs out where the loading path began; a crushed one loses its force with the pads still
+well in.  Along the contact the guard keeps the loading path (a point each time the force
+passes the last by 5 %); when the force is gone, pads that stood at the contact's last
+sample more than a window beyond where the path first reached that sample's force, less half
+the sample's own motion (:func:`set_beyond_m`), flag the finger for that one sample
+(:data:`SET_FOUND`), and the flag's re-charge pays the episode's winding.  Only the last
+sample is judged: while a contact lasts, the force against the estimated advance may stray
+from the path in either direction (a fingertip sliding along a block's face reads several
+millimetres of it), but an elastic contact's force runs out where it began.  The shape
+again, not the gain: the force only picks the point on the path.
+
 What it cannot see: physics that absorbs energy while its force keeps rising at least at
 ``yield_stiffness_ratio`` of its initial stiffness (a strongly work-hardening material with
 cells reading low); crushing done by the distal link alone while the proximal joint stands
@@ -48,6 +62,7 @@ the push, after the bound broke).  All are stated in docs/controllers.md.
 from __future__ import annotations
 
 import math
+from bisect import bisect_left
 from dataclasses import dataclass
 
 
@@ -64,12 +79,60 @@ class YieldTrack:
     low_chords: int = 0  # flat chords in a row
     yielding: bool = False  # latched until the contact ends
     wound_rad: float = 0.0  # the motor's inward motion (joint side) over the episode
+    force_n: float = 0.0  # estimated force at the last sample
+    step_m: float = 0.0  # the pads' advance over the last sample
+    #: the loading path: (estimated force, advance) each time the force first passed
+    #: ``LOADING_STEP`` times the last point's (the episode's first reading the first point)
+    loading: tuple[tuple[float, float], ...] = ()
 
 
 NO_CONTACT = YieldTrack()
+#: a contact that ended having taken a set (:func:`took_a_set`): flagged for the one sample
+#: in which it ended, which makes :func:`flag_recharge_j` charge the episode's winding
+SET_FOUND = YieldTrack(yielding=True)
 
 #: flat chords in a row that flag a yield
 LOW_CHORDS = 2
+#: force ratio between successive points of the kept loading path
+LOADING_STEP = 1.05
+#: the set check's allowance for an object's damper, in samples of the pads' last motion
+DAMPER_SAMPLES = 0.5
+
+
+def set_beyond_m(path: tuple[tuple[float, float], ...], force_n: float, advance_m: float,
+                 step_m: float) -> float:
+    """How far pads at ``advance_m`` with the force ``force_n`` stand beyond where the
+    loading ``path`` first reached that force, less ``DAMPER_SAMPLES`` of the sample's own
+    motion ``step_m``.  An elastic contact unloads along the path it loaded on (about 0); its
+    damper holds the unloading force below the loading one by ``c v``, the pads by ``c v /
+    k`` = ``(c / k) / dt`` samples' motion: within the allowance for a contact whose time
+    constant is under half the hand's sample period (the grid's objects: 2-7 ms against
+    12.5 ms).  A crushed object unloads along a path moved in by its dent.  Gain-free: the
+    force only picks the point on the path."""
+    i = bisect_left(path, force_n, key=_force)
+    q_load = path[min(i, len(path) - 1)][1]
+    return advance_m - q_load - DAMPER_SAMPLES * abs(step_m)
+
+
+def _force(point: tuple[float, float]) -> float:
+    return point[0]
+
+
+def took_a_set(track: YieldTrack, window_m: float) -> bool:
+    """Did the contact that ``track`` followed leave the object dented: at its last sample,
+    pads standing more than one window (``window_m``) beyond the loading path
+    (:func:`set_beyond_m`)?"""
+    return bool(track.loading) and set_beyond_m(
+        track.loading, track.force_n, track.advance_m, track.step_m) > window_m
+
+
+def _loaded(path: tuple[tuple[float, float], ...], force_n: float,
+            advance_m: float) -> tuple[tuple[float, float], ...]:
+    """``path`` with ``(force_n, advance_m)`` added if the force passed its last point by
+    ``LOADING_STEP``."""
+    if path and force_n < LOADING_STEP * path[-1][0]:
+        return path
+    return (*path, (force_n, advance_m))
 
 
 def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: float,
@@ -84,6 +147,10 @@ def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: fl
     in which the force was first seen included) is what :func:`flag_recharge_j` charges
     when the flag is raised."""
     if force_n <= 0.0:
+        # the contact ended: unflagged, it is judged once more by the set it left
+        if (prev.in_contact and not prev.yielding and stiffness_ratio > 0.0
+                and took_a_set(prev, window_m)):
+            return SET_FOUND
         return NO_CONTACT
     wound = (prev.wound_rad if prev.in_contact else 0.0) + (
         max(motor_rad - motor_prev_rad, 0.0) if motor_prev_rad is not None else 0.0)
@@ -91,24 +158,27 @@ def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: fl
         # the episode begins where the force is first seen: chords are measured from here
         # (the force jumps from zero at the first reading; that step is not a stiffness)
         return YieldTrack(in_contact=True, anchor_n=force_n, anchor_motor_rad=motor_rad,
-                          wound_rad=wound)
+                          wound_rad=wound, force_n=force_n, loading=((force_n, 0.0),))
     q = prev.advance_m + advance_m
+    path = _loaded(prev.loading, force_n, q)
     span = q - prev.anchor_m
     if span < 0.0:
         # backing out: the next chord starts from the furthest-back point (an elastic
         # contact unloads and reloads along the same curve)
         return YieldTrack(True, q, q, force_n, prev.stiffest_n_per_m, motor_rad, 0,
-                          prev.yielding, wound)
+                          prev.yielding, wound, force_n, advance_m, path)
     if span < window_m:
         return YieldTrack(True, q, prev.anchor_m, prev.anchor_n, prev.stiffest_n_per_m,
-                          prev.anchor_motor_rad, prev.low_chords, prev.yielding, wound)
+                          prev.anchor_motor_rad, prev.low_chords, prev.yielding, wound,
+                          force_n, advance_m, path)
     chord = (force_n - prev.anchor_n) / span
     stiffest = max(prev.stiffest_n_per_m, chord)
     flat = (stiffness_ratio > 0.0 and stiffest > 0.0 and chord < stiffness_ratio * stiffest
             and motor_rad > prev.anchor_motor_rad)
     low = prev.low_chords + 1 if flat else 0
     return YieldTrack(True, q, q, force_n, stiffest, motor_rad, low,
-                      prev.yielding or low >= LOW_CHORDS, wound)
+                      prev.yielding or low >= LOW_CHORDS, wound, force_n, advance_m,
+                      path)
 
 
 def pad_advance_m(forces_n: tuple[float, float], places_m: tuple[float, float],
@@ -146,5 +216,5 @@ def flag_recharge_j(before: tuple[YieldTrack, ...], after: tuple[YieldTrack, ...
                if a.yielding and not b.yielding)
 
 
-__all__ = ["NO_CONTACT", "YieldTrack", "flag_recharge_j", "pad_advance_m", "step_yield",
-           "yield_charge_j"]
+__all__ = ["NO_CONTACT", "SET_FOUND", "YieldTrack", "flag_recharge_j", "pad_advance_m",
+           "set_beyond_m", "step_yield", "took_a_set", "yield_charge_j"]

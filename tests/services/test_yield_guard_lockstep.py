@@ -9,7 +9,7 @@ object-port work comes from the simulator's own audit, never from the controller
 Cells that read nothing at all (``tactile_gain = 0``: dead, or a contact off the pads) are the
 unseen-contact guard's case (:mod:`teleop.control.stall_guard`); cells reading low on a contact
 that neither yields flat nor goes unseen (a work-hardening skin) the gain cross-check's
-(:mod:`teleop.control.gain_check`).
+(:mod:`teleop.control.gain_check`) and, once the contact ends, the yield guard's set check.
 """
 
 from __future__ import annotations
@@ -29,14 +29,16 @@ HARDENING = ("hand.sim.object.yield_force_n=5", "hand.sim.object.yield_hardening
              "hand.sim.tactile_gain=0.333")
 HIGH = (*HARDENING[:2], "hand.sim.tactile_gain=3")
 GAIN_CHECK_OFF = "controller.tactile.gain_check_window_s=0"
-YIELD_OFF = (*CRUSH, "controller.tactile.yield_stiffness_ratio=0")
+GUARD_OFF = "controller.tactile.yield_stiffness_ratio=0"
+YIELD_OFF = (*CRUSH, GUARD_OFF)
 
 #: every grasp this module judges (override tuples), run together on two processes
 GRASPS = (CRUSH, YIELD_OFF, (*YIELD_OFF, GAIN_CHECK_OFF), DEAD,
           (*DEAD, "controller.tactile.stall_window_rad=0"),
           *(("hand.sim.tactile_gain=0", f"master.virtual.style={s}") for s in ("soft", "hard")),
           *(("hand.sim.object.yield_force_n=5", f"hand.sim.tactile_gain={g}") for g in GAINS),
-          HARDENING, (*HARDENING, GAIN_CHECK_OFF), HIGH)
+          HARDENING, (*HARDENING, GAIN_CHECK_OFF), (*HARDENING, GUARD_OFF),
+          (*HARDENING, GUARD_OFF, GAIN_CHECK_OFF), HIGH)
 
 
 @pytest.fixture(scope="module")
@@ -133,23 +135,46 @@ def test_at_any_gain_one_guard_or_the_other_raises_the_alarm_and_the_tank_pays(
 def test_a_work_hardening_object_with_cells_reading_low_raises_the_alarm_and_the_tank_pays(
         first_grasp) -> None:
     """A skin whose yield level rises 2 N per mm of dent keeps its chords steeper than a
-    fifth of the elastic ones, so the yield guard sees nothing; the gain cross-check
-    (:mod:`teleop.control.gain_check`) finds the held grasp's cells reading a third of the
-    moment the servo's load implies, flags the fingers and re-charges their work at the
-    measured ratio: the tank pays at least the plastic work (docs/controllers.md's table)."""
+    fifth of the elastic ones, so the yield guard's chords see nothing while it is pressed;
+    the gain cross-check (:mod:`teleop.control.gain_check`) finds the held grasp's cells
+    reading a third of the moment the servo's load implies, flags the fingers and
+    re-charges their work at the measured ratio, and when the grasp opens the dent it left
+    is a set (:func:`teleop.control.yield_guard.took_a_set`): the tank pays at least the
+    plastic work (docs/controllers.md's table)."""
     obj, paid, flagged, unseen, low = first_grasp(*HARDENING)
     assert obj > 0.05  # the pads did dent it
-    assert flagged == 0 and unseen == 0  # neither of the other guards sees it
-    assert low >= 1
+    assert unseen == 0 and low >= 1 and flagged >= 1
     assert paid >= obj
 
 
 @pytest.mark.slow
-def test_without_the_gain_check_the_hardening_object_is_under_paid(first_grasp) -> None:
-    """The mutant kept as a test (the check off, ``gain_check_window_s = 0``): nothing is
-    flagged and the tank pays about half of the plastic work (measured 2026-11-26: 0.058 J
-    for 0.10 J), the gap the check closes."""
+def test_with_the_yield_guard_off_the_gain_check_alone_catches_the_hardening_object(
+        first_grasp) -> None:
+    """The yield guard off (its chords and the set check): the gain cross-check alone
+    still makes the tank pay at least the plastic work (measured 2026-11-29: 0.48 J for
+    0.12 J)."""
+    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, GUARD_OFF)
+    assert flagged == 0 and unseen == 0 and low >= 1
+    assert paid >= obj
+
+
+@pytest.mark.slow
+def test_with_the_gain_check_off_the_set_check_alone_catches_the_hardening_object(
+        first_grasp) -> None:
+    """The gain cross-check off: the dent the grasp leaves is found when the contact ends
+    and the fingers' winding over it re-charged at the servo's torque (measured
+    2026-11-29: 12.2 J for 0.12 J, two fingers flagged)."""
     obj, paid, flagged, unseen, low = first_grasp(*HARDENING, GAIN_CHECK_OFF)
+    assert low == 0 and unseen == 0 and flagged >= 1
+    assert paid >= obj
+
+
+@pytest.mark.slow
+def test_without_either_check_the_hardening_object_is_under_paid(first_grasp) -> None:
+    """The mutant kept as a test (the gain check and the yield guard off): nothing is
+    flagged and the tank pays about 60 % of the plastic work (measured 2026-11-29: 0.070 J
+    for 0.116 J), the gap the two checks close."""
+    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, GUARD_OFF, GAIN_CHECK_OFF)
     assert flagged == 0 and unseen == 0 and low == 0
     assert 0.0 < paid < 0.75 * obj
 

@@ -26,6 +26,7 @@ import pytest
 from _ctl_harness import Scenario, Trace, audit_failure, initial_tank_j, run_loop
 
 from teleop.config.control import ControllerConfig
+from teleop.control import yield_guard
 from teleop.control.interface import ControlParams, control_params
 from teleop.control.registry import CONTROLLERS
 from tests.teleop.control.two_layer_parts import patch_sides
@@ -154,6 +155,35 @@ def test_without_the_flag_recharge_the_firmer_operator_breaks_the_bound(
     patch_sides(monkeypatch, "flag_recharge_j", lambda *a: 0.0)
     r = run_loop(SUITE, P, replace(FIRM_PUSH, sensor_gain_factor=1.0 / 3.0))
     assert r.yielding_hand == 3
+    assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+
+
+#: the yielding push in quick grasps (3 s): each contact ends before two flat chords form
+QUICK_PUSH = replace(PUSH, ref_period_s=3.0)
+
+
+@pytest.mark.parametrize("gain", [0.2, 1.0 / 3.0, 0.4])
+def test_quick_grasps_of_a_yielding_object_read_low_are_flagged_by_their_set(
+        gain: float) -> None:
+    """Grasps too short for the chords' flag: when each contact ends the pads stand well
+    beyond where the loading path had the same force, the set check
+    (:func:`teleop.control.yield_guard.took_a_set`) flags the fingers for that sample and the
+    episode's winding is charged at the servo's torque: passive
+    (``tests/teleop/control/yield_harness_scan.py`` runs this over 210 operators, grasp
+    lengths and gains)."""
+    r = run(P, replace(QUICK_PUSH, sensor_gain_factor=gain))
+    assert r.yielding_hand == 3
+    assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
+
+
+def test_without_the_set_check_quick_grasps_break_the_bound(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The mutant kept as a test: the set check off, the quick grasps at a third are never
+    flagged and the object keeps what the cells under-charged (the audit's margin fell to
+    -30 mJ in 6 s with 0.1 J tanks, 2026-11-29)."""
+    monkeypatch.setattr(yield_guard, "took_a_set", lambda *a: False)
+    r = run_loop(SUITE, P, replace(QUICK_PUSH, sensor_gain_factor=1.0 / 3.0))
+    assert r.yielding_hand == 0
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
 
 

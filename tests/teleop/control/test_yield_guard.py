@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Callable
+from dataclasses import replace
 
 import pytest
 from hypothesis import given, settings
@@ -18,10 +19,12 @@ from hypothesis import strategies as st
 
 from teleop.control.yield_guard import (
     NO_CONTACT,
+    SET_FOUND,
     YieldTrack,
     flag_recharge_j,
     pad_advance_m,
     step_yield,
+    took_a_set,
     yield_charge_j,
 )
 
@@ -184,3 +187,91 @@ def test_the_flag_recharges_the_winding_of_the_episode_before_it() -> None:
     fresh = step_yield(NO_CONTACT, 1.0, 0.0, 0.5, WINDOW_M, RATIO, 0.45)
     assert fresh.wound_rad == pytest.approx(0.05)
     assert step_yield(after, 0.0, 0.0, 0.3, WINDOW_M, RATIO, 0.2) == NO_CONTACT
+
+
+class Plastic:
+    """An elastic-perfectly-plastic contact: ``k (d - set)``, capped at ``yield_n``, the set
+    growing by what the cap cuts off (a dent that stays when the pads back out)."""
+
+    def __init__(self, k: float, yield_n: float) -> None:
+        self.k, self.yield_n, self.set_m = k, yield_n, 0.0
+
+    def __call__(self, d: float) -> float:
+        if self.k * (d - self.set_m) > self.yield_n:
+            self.set_m = d - self.yield_n / self.k
+        return max(self.k * (d - self.set_m), 0.0)
+
+
+def in_and_out(force_of: Callable[[float, float], float], depths_m: list[float],
+               gain: float = 1.0, ratio: float = RATIO) -> list[YieldTrack]:
+    """The guard's states along ``depths_m`` (in and back out), the force a function of the
+    depth and the last sample's motion, the motor winding in and out with the pads."""
+    g, out, d_prev = NO_CONTACT, [], depths_m[0]
+    for d in depths_m:
+        f = gain * force_of(d, d - d_prev)
+        g = step_yield(g, f, d - d_prev, 10.0 * d, WINDOW_M, ratio, 10.0 * d_prev)
+        out.append(g)
+        d_prev = d
+    return out
+
+
+#: pressed 3.2 mm into a skin that yields at 1.5 mm (1.7 mm of crushing: fewer than two
+#: windows, so no two flat chords), then backed out past where it started
+QUICK_CRUSH = ramp(0.0032, n=80) + ramp(-0.001, n=40, start_m=0.0032)[1:]
+
+
+@pytest.mark.parametrize("gain", [1.0, 1.0 / 3.0, 0.01])
+def test_a_quick_crush_is_found_by_the_set_it_leaves(gain: float) -> None:
+    """Too brief for two flat chords, the crush is not flagged while it lasts; when the
+    contact ends the pads stand 1.7 mm beyond where the loading path had the same force:
+    the finger is flagged for that sample (whatever the cells' gain) and the episode's
+    winding is re-charged."""
+    plastic = Plastic(2000.0, 3.0)
+    states = in_and_out(lambda d, _s: plastic(d), QUICK_CRUSH, gain)
+    end = next(i for i, g in enumerate(states) if i and not g.in_contact)
+    assert not any(g.yielding for g in states[:end])
+    assert states[end] == SET_FOUND
+    assert states[end - 1].wound_rad > 0.0
+    assert flag_recharge_j((states[end - 1],), (states[end],), 2.0) == \
+        pytest.approx(2.0 * states[end - 1].wound_rad)
+    assert states[end + 1] == NO_CONTACT  # one sample only
+
+
+@pytest.mark.parametrize("force", [
+    lambda d, _s: 2000.0 * max(d, 0.0),
+    lambda d, _s: 4e6 * max(d, 0.0) ** 1.5,
+    # a damper: the force while backing out (0.4 mm a 25 ms sample) is 2.16 N below the
+    # spring's, so it ends 1.08 mm in, within one window plus half a sample's motion
+    lambda d, step: max(2000.0 * d + 135.0 * step / 0.025, 0.0) if d > 0.0 else 0.0,
+], ids=["linear", "stiffening", "damped"])
+def test_an_elastic_contact_in_and_out_leaves_no_set(force: Callable[[float, float], float]
+                                                      ) -> None:
+    path = ramp(0.008, n=160) + ramp(-0.001, n=22, start_m=0.008)[1:]
+    states = in_and_out(force, path)
+    assert not states[-1].in_contact
+    assert not any(g.yielding for g in states)
+
+
+def test_a_contact_already_flagged_is_not_flagged_again_at_its_end() -> None:
+    plastic = Plastic(2000.0, 3.0)
+    states = in_and_out(lambda d, _s: plastic(d), ramp(0.012, n=200) + [-0.001])
+    assert states[-2].yielding and states[-1] == NO_CONTACT
+
+
+def test_the_set_check_is_off_with_the_guard() -> None:
+    plastic = Plastic(2000.0, 3.0)
+    states = in_and_out(lambda d, _s: plastic(d), QUICK_CRUSH, ratio=0.0)
+    assert not any(g.yielding for g in states)
+
+
+def test_the_loading_path_keeps_points_five_percent_apart() -> None:
+    """The path is bounded (a point per 5 % of force, not per sample) and the set is judged
+    against the first point at or above the last force: not one window further in."""
+    states = in_and_out(lambda d, _s: 2000.0 * max(d, 0.0), ramp(0.008, n=400))
+    path = states[-1].loading
+    assert len(path) < 80
+    assert all(b[0] >= 1.05 * a[0] for a, b in zip(path, path[1:], strict=False))
+    g = replace(states[-1], force_n=8.0, step_m=0.0)
+    q4 = next(q for f, q in path if f >= 8.0)
+    assert not took_a_set(replace(g, advance_m=q4 + WINDOW_M), WINDOW_M)
+    assert took_a_set(replace(g, advance_m=q4 + 1.01 * WINDOW_M), WINDOW_M)
