@@ -31,7 +31,7 @@ from teleop.control.passivity_layer import (
     servo_potential_j,
     spring_energy_j,
 )
-from teleop.control.stall_guard import FREE, StallTrack, step_stall
+from teleop.control.stall_guard import FREE, StallTrack, stall_recharge_j, step_stall
 from teleop.control.touch_cap import NO_TOUCH, hand_touch_cap, touch_since
 from teleop.control.transparency_layer import (
     max_pressures,
@@ -173,9 +173,11 @@ def stall_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...]
     """The unseen-contact guard's step for the three fingers
     (:mod:`teleop.control.stall_guard`): motor angle, proximal encoder, cells' pad force."""
     t = p.tactile
+    x_prev = s.x_prev or x
     return tuple(step_stall(g, x_i, f.proximal_rad, b.prox_force_n + b.dist_force_n,
-                            t.stall_window_rad, t.stall_ratio, t.free_curl_rad)
-                 for g, b, f, x_i in zip(s.stalls, pads, fingers, x, strict=False))
+                            t.stall_window_rad, t.stall_ratio, t.free_curl_rad, w_i)
+                 for g, b, f, x_i, w_i in zip(s.stalls, pads, fingers, x, x_prev,
+                                              strict=False))
 
 
 def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],
@@ -203,9 +205,11 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     # motion is charged at the servo's torque (teleop.control.yield_guard, .stall_guard)
     crush = (yield_charge_j(x, s.x_prev, blind, p.servo_torque_max_nm)
              if s.x_prev is not None else 0.0)
-    # a finger just flagged: its advance before the flag, which the cells were trusted for,
-    # at the servo's torque too (outside the one-sample cap: past samples' work)
-    flagged = flag_recharge_j(s.yields, yields, p.servo_torque_max_nm)
+    # a finger just flagged: its advance before the flag, which the cells were trusted for
+    # (yield) or saw nothing of (stall), at the servo's torque too (outside the one-sample
+    # cap: past samples' work)
+    flagged = (flag_recharge_j(s.yields, yields, p.servo_torque_max_nm)
+               + stall_recharge_j(s.stalls, stalls, p.servo_torque_max_nm))
     # one sample cannot deliver more than the fingers held at its start (servo potential,
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that

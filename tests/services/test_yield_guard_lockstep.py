@@ -89,7 +89,7 @@ def test_dead_cells_on_a_crushing_object_raise_the_alarm_and_the_tank_pays(
         first_grasp) -> None:
     """Cells reading nothing: the fingers stall on the cylinder with silent cells, the
     unseen-contact guard flags them and charges their further advance at the servo's torque
-    (measured 2026-11-26: object 0.30 J, tank paid 14.5 J, 3 fingers)."""
+    (measured 2026-11-29: object 0.30 J, tank paid 15.2 J, 3 fingers)."""
     obj, paid, _, unseen, _ = first_grasp(*DEAD)
     assert obj > 0.1
     assert unseen >= 1

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from teleop.control.stall_guard import FREE, StallTrack, step_stall
+from teleop.control.stall_guard import FREE, StallTrack, stall_recharge_j, step_stall
 
 WINDOW, RATIO, CURL = 0.1, 0.3, 0.45
 
@@ -108,3 +109,36 @@ def test_any_free_closing_within_the_model_is_not_flagged(rate: float, curl: flo
     motor = np.linspace(0.0, 2.5, 1500)
     prox = np.maximum(motor - curl, 0.0) * rate + rng.normal(0.0, noise, motor.size)
     assert not any(s.stalled for s in follow(motor, prox))
+
+
+def test_the_flag_recharges_the_winding_of_the_chord_that_found_it() -> None:
+    """The chord that finds the stall was charged nothing (the cells are silent): when the
+    flag is raised :func:`stall_recharge_j` charges ``tau_max`` times the motor's inward
+    motion over it before the flagging sample (whose own motion is the yield guard's
+    per-sample charge), the steps back not netted out, once."""
+    motor, prox = closing(0.2)
+    motor = motor.copy()
+    motor[1::9] -= 0.002  # now and then a step back
+    s, m_prev, states = FREE, None, []
+    for m, p in zip(motor, prox, strict=True):
+        s = step_stall(s, float(m), float(p), 0.0, WINDOW, RATIO, CURL, m_prev)
+        states.append(s)
+        m_prev = float(m)
+    flag = next(i for i, g in enumerate(states) if g.stalled)
+    before = states[flag - 1]
+    assert before.anchor_motor_rad is not None
+    start = max(i for i in range(flag) if states[i].anchor_motor_rad == motor[i])
+    inward = sum(max(motor[i] - motor[i - 1], 0.0) for i in range(start + 1, flag))
+    assert before.wound_rad == pytest.approx(inward, rel=1e-12)
+    assert inward > motor[flag - 1] - before.anchor_motor_rad  # the steps back not netted
+    assert inward >= WINDOW - (motor[flag] - motor[flag - 1])
+    assert stall_recharge_j((before, FREE), (states[flag], FREE), 3.0) == \
+        pytest.approx(3.0 * inward)
+    # once: never again while the flag holds (the later chords wind on)
+    assert any(g.wound_rad > 0.0 for g in states[flag:])
+    assert sum(stall_recharge_j((a,), (b,), 3.0)
+               for a, b in zip(states[flag:], states[flag + 1:], strict=False)) == 0.0
+    # without the previous angle nothing is wound (the guard's verdicts unchanged)
+    plain = follow(motor, prox)
+    assert [g.stalled for g in plain] == [g.stalled for g in states]
+    assert all(g.wound_rad == 0.0 for g in plain)
