@@ -164,7 +164,8 @@ def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...]
                             b.proximal_rad - a.proximal_rad, b.distal_rad,
                             t.proximal_length_m)
         out.append(step_yield(g, b.prox_force_n + b.dist_force_n, adv, x_i,
-                              t.yield_window_m, t.yield_stiffness_ratio, w_i))
+                              t.yield_window_m, t.yield_stiffness_ratio, w_i,
+                              t.yield_set_check))
     return tuple(out)
 
 

@@ -34,7 +34,9 @@ when it is spent, and the hand reports the finger (an alarm: the contact is crus
 sliding and its tactile estimate is not relied on).
 
 A contact too brief for two flat chords (a quick grasp: the pads crush the object for less
-than two windows, then let go) is judged once more when it ends, by the set it left
+than two windows, then let go) can be judged once more when it ends (``set_check``, the
+hand's ``yield_set_check``: off by default, since its worst-case charge starves the hard
+operator's later grasps of a crushable object; docs/controllers.md), by the set it left
 (:func:`took_a_set`): an elastic contact unloads along the path it loaded on, so its force
 runs out where the loading path began; a crushed one loses its force with the pads still
 well in.  Along the contact the guard keeps the loading path (a point each time the force
@@ -137,7 +139,7 @@ def _loaded(path: tuple[tuple[float, float], ...], force_n: float,
 
 def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: float,
                window_m: float, stiffness_ratio: float,
-               motor_prev_rad: float | None = None) -> YieldTrack:
+               motor_prev_rad: float | None = None, set_check: bool = True) -> YieldTrack:
     """One hand sample of one finger: ``force_n`` the estimated total pad force at its end,
     ``advance_m`` the pads' force-weighted advance into the object over it
     (:func:`pad_advance_m`), ``motor_rad`` its motor angle (joint side) at its end and
@@ -145,10 +147,11 @@ def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: fl
     judged while the motor wound in over it: a force falling while the servo lets go is an
     unloading, not a yield.  The episode's winding (the motor's inward motion, the sample
     in which the force was first seen included) is what :func:`flag_recharge_j` charges
-    when the flag is raised."""
+    when the flag is raised.  ``set_check``: judge a contact that ends unflagged by the
+    set it left (:func:`took_a_set`; the hand's ``yield_set_check``, off by default)."""
     if force_n <= 0.0:
         # the contact ended: unflagged, it is judged once more by the set it left
-        if (prev.in_contact and not prev.yielding and stiffness_ratio > 0.0
+        if (set_check and prev.in_contact and not prev.yielding and stiffness_ratio > 0.0
                 and took_a_set(prev, window_m)):
             return SET_FOUND
         return NO_CONTACT

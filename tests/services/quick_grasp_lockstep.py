@@ -1,13 +1,14 @@
 """Quick grasps of the crushable cylinder with cells reading low, on the simulated hand.
 
-    python tests/services/quick_grasp_lockstep.py [--no-set-check]
+    python tests/services/quick_grasp_lockstep.py [--set-check]
 
 Lockstep, 15 s, seed 1, the hard operator's script shortened (``master.virtual.hold_s`` /
 ``ramp_s`` / ``release_s``), the grid's ``crushable-cylinder``, cells reading a third or a
 fifth (``hand.sim.tactile_gain``).  Per run: the most fingers flagged yielding at once, what
 the object kept by the simulator's audit and what the hand's tank paid by its ledger at the
 end, the lowest paid-minus-kept over the run, and the loop's audit margin.
-``--no-set-check`` runs the same with the yield guard's end-of-contact set check off.
+``--set-check`` runs the same with the yield guard's end-of-contact set check on
+(``controller.tactile.yield_set_check``, off by default).
 docs/controllers.md quotes the figures.
 """
 
@@ -24,7 +25,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from services.lockstep import run_lockstep  # noqa: E402
 from teleop.analysis.sweep_objects import with_object  # noqa: E402
 from teleop.config import load_config  # noqa: E402
-from teleop.control import yield_guard  # noqa: E402
 
 #: (hold, close, open) seconds of the operator's script
 SCRIPTS = ((0.0, 0.5, 0.3), (0.2, 0.4, 0.3), (0.0, 0.3, 0.2))
@@ -32,13 +32,12 @@ GAINS = (0.333, 0.2)
 
 
 def main() -> int:
-    if "--no-set-check" in sys.argv[1:]:
-        yield_guard.took_a_set = lambda *_a: False  # type: ignore[assignment]
+    extra = ["controller.tactile.yield_set_check=true"] if "--set-check" in sys.argv[1:] else []
     for (hold, close, release), gain in ((s, g) for s in SCRIPTS for g in GAINS):
         cfg = with_object(load_config(None, [
             f"hand.sim.tactile_gain={gain}", f"master.virtual.hold_s={hold}",
             f"master.virtual.ramp_s={close}", f"master.virtual.release_s={release}",
-            "master.virtual.style=hard"]), "crushable-cylinder")
+            "master.virtual.style=hard", *extra]), "crushable-cylinder")
         most = [0]
 
         def hook(_t: float, ctx: Any, most: list[int] = most) -> None:

@@ -30,6 +30,7 @@ HARDENING = ("hand.sim.object.yield_force_n=5", "hand.sim.object.yield_hardening
 HIGH = (*HARDENING[:2], "hand.sim.tactile_gain=3")
 GAIN_CHECK_OFF = "controller.tactile.gain_check_window_s=0"
 GUARD_OFF = "controller.tactile.yield_stiffness_ratio=0"
+SET_CHECK = "controller.tactile.yield_set_check=true"
 YIELD_OFF = (*CRUSH, GUARD_OFF)
 
 #: every grasp this module judges (override tuples), run together on two processes
@@ -38,7 +39,8 @@ GRASPS = (CRUSH, YIELD_OFF, (*YIELD_OFF, GAIN_CHECK_OFF), DEAD,
           *(("hand.sim.tactile_gain=0", f"master.virtual.style={s}") for s in ("soft", "hard")),
           *(("hand.sim.object.yield_force_n=5", f"hand.sim.tactile_gain={g}") for g in GAINS),
           HARDENING, (*HARDENING, GAIN_CHECK_OFF), (*HARDENING, GUARD_OFF),
-          (*HARDENING, GUARD_OFF, GAIN_CHECK_OFF), HIGH)
+          (*HARDENING, GUARD_OFF, GAIN_CHECK_OFF), (*HARDENING, SET_CHECK),
+          (*HARDENING, SET_CHECK, GAIN_CHECK_OFF), HIGH)
 
 
 @pytest.fixture(scope="module")
@@ -138,13 +140,15 @@ def test_a_work_hardening_object_with_cells_reading_low_raises_the_alarm_and_the
     fifth of the elastic ones, so the yield guard's chords see nothing while it is pressed;
     the gain cross-check (:mod:`teleop.control.gain_check`) finds the held grasp's cells
     reading a third of the moment the servo's load implies, flags the fingers and
-    re-charges their work at the measured ratio, and when the grasp opens the dent it left
-    is a set (:func:`teleop.control.yield_guard.took_a_set`): the tank pays at least the
-    plastic work (docs/controllers.md's table)."""
+    re-charges their work at the measured ratio: the tank pays at least the plastic work
+    (docs/controllers.md's table).  With the yield guard's set check on (off by default)
+    the dent is flagged too when the grasp opens."""
     obj, paid, flagged, unseen, low = first_grasp(*HARDENING)
     assert obj > 0.05  # the pads did dent it
-    assert unseen == 0 and low >= 1 and flagged >= 1
+    assert flagged == 0 and unseen == 0 and low >= 1
     assert paid >= obj
+    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, SET_CHECK)
+    assert flagged >= 1 and low >= 1 and paid >= obj
 
 
 @pytest.mark.slow
@@ -161,22 +165,23 @@ def test_with_the_yield_guard_off_the_gain_check_alone_catches_the_hardening_obj
 @pytest.mark.slow
 def test_with_the_gain_check_off_the_set_check_alone_catches_the_hardening_object(
         first_grasp) -> None:
-    """The gain cross-check off: the dent the grasp leaves is found when the contact ends
-    and the fingers' winding over it re-charged at the servo's torque (measured
-    2026-11-29: 12.2 J for 0.12 J, two fingers flagged)."""
-    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, GAIN_CHECK_OFF)
+    """The gain cross-check off, the set check on (``yield_set_check``): the dent the grasp
+    leaves is found when the contact ends and the fingers' winding over it re-charged at
+    the servo's torque (measured 2026-11-29: 12.2 J for 0.12 J, two fingers flagged)."""
+    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, SET_CHECK, GAIN_CHECK_OFF)
     assert low == 0 and unseen == 0 and flagged >= 1
     assert paid >= obj
 
 
 @pytest.mark.slow
 def test_without_either_check_the_hardening_object_is_under_paid(first_grasp) -> None:
-    """The mutant kept as a test (the gain check and the yield guard off): nothing is
-    flagged and the tank pays about 60 % of the plastic work (measured 2026-11-29: 0.070 J
-    for 0.116 J), the gap the two checks close."""
-    obj, paid, flagged, unseen, low = first_grasp(*HARDENING, GUARD_OFF, GAIN_CHECK_OFF)
-    assert flagged == 0 and unseen == 0 and low == 0
-    assert 0.0 < paid < 0.75 * obj
+    """The mutant kept as a test (the gain check off, and the yield guard off or as by
+    default without its set check): nothing is flagged and the tank pays about 60 % of the
+    plastic work (measured 2026-11-29: 0.070 J for 0.116 J), the gap the checks close."""
+    for overrides in ((*HARDENING, GUARD_OFF, GAIN_CHECK_OFF), (*HARDENING, GAIN_CHECK_OFF)):
+        obj, paid, flagged, unseen, low = first_grasp(*overrides)
+        assert flagged == 0 and unseen == 0 and low == 0
+        assert 0.0 < paid < 0.75 * obj
 
 
 @pytest.mark.slow

@@ -70,11 +70,11 @@ def harness() -> None:
     from dataclasses import replace
 
     from _ctl_harness import run_loop
-    from test_assumptions import PUSH, SUITE, P
+    from test_assumptions import P_SET, PUSH, SUITE
 
     for k_op, period, gain in itertools.product((500.0, 2000.0, 12000.0), (2.0, 3.0, 4.0),
                                                 (0.2, 1.0 / 3.0, 0.5)):
-        run_loop(SUITE, P, replace(PUSH, op_stiffness=k_op, ref_period_s=period,
+        run_loop(SUITE, P_SET, replace(PUSH, op_stiffness=k_op, ref_period_s=period,
                                    sensor_gain_factor=gain))
     s = _sets_mm()
     for i, a in enumerate(ALLOWANCES):

@@ -160,6 +160,8 @@ def test_without_the_flag_recharge_the_firmer_operator_breaks_the_bound(
 
 #: the yielding push in quick grasps (3 s): each contact ends before two flat chords form
 QUICK_PUSH = replace(PUSH, ref_period_s=3.0)
+#: the guard with its end-of-contact set check on (``yield_set_check``, off by default)
+P_SET = replace(P, tactile=replace(P.tactile, yield_set_check=True))
 
 
 @pytest.mark.parametrize("gain", [0.2, 1.0 / 3.0, 0.4])
@@ -171,20 +173,25 @@ def test_quick_grasps_of_a_yielding_object_read_low_are_flagged_by_their_set(
     episode's winding is charged at the servo's torque: passive
     (``tests/teleop/control/yield_harness_scan.py`` runs this over 210 operators, grasp
     lengths and gains)."""
-    r = run(P, replace(QUICK_PUSH, sensor_gain_factor=gain))
+    r = run(P_SET, replace(QUICK_PUSH, sensor_gain_factor=gain))
     assert r.yielding_hand == 3
-    assert audit_failure(r, initial_tank_j(SUITE, P)) == ""
+    assert audit_failure(r, initial_tank_j(SUITE, P_SET)) == ""
 
 
 def test_without_the_set_check_quick_grasps_break_the_bound(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """The mutant kept as a test: the set check off, the quick grasps at a third are never
-    flagged and the object keeps what the cells under-charged (the audit's margin fell to
-    -30 mJ in 6 s with 0.1 J tanks, 2026-11-29)."""
-    monkeypatch.setattr(yield_guard, "took_a_set", lambda *a: False)
-    r = run_loop(SUITE, P, replace(QUICK_PUSH, sensor_gain_factor=1.0 / 3.0))
+    """Kept as a test: the set check off (the default, ``yield_set_check = false``; and its
+    verdict patched out with it on), the quick grasps at a third are never flagged and the
+    object keeps what the cells under-charged (the audit's margin fell to -30 mJ in 6 s
+    with 0.1 J tanks, 2026-11-29)."""
+    sc = replace(QUICK_PUSH, sensor_gain_factor=1.0 / 3.0)
+    r = run(P, sc)
     assert r.yielding_hand == 0
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+    monkeypatch.setattr(yield_guard, "took_a_set", lambda *a: False)
+    r = run_loop(SUITE, P_SET, sc)
+    assert r.yielding_hand == 0
+    assert audit_failure(r, initial_tank_j(SUITE, P_SET)) != ""
 
 
 def test_a_contact_the_cells_do_not_see_is_not_charged() -> None:

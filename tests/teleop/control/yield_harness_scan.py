@@ -7,9 +7,10 @@ against the object that yields while pressed (the box pushed across a table of
 ``test_assumptions.PUSH``), over operators of 500-12,000 N/m x grasps of 2-8 s x tactile
 gains of 0.2-0.5 (below the margin: the cells charge ``m g < 1`` of the work).  Prints one
 line per run: the most fingers flagged at once and the audit's smallest margin, then how many
-runs broke the bound and how many of those were never flagged.  ``--no-set-check`` runs the
-same with the end-of-contact set check (:func:`teleop.control.yield_guard.took_a_set`) off,
-for the comparison docs/controllers.md quotes.
+runs broke the bound and how many of those were never flagged.  The end-of-contact set
+check (:func:`teleop.control.yield_guard.took_a_set`, ``yield_set_check``) is on here;
+``--no-set-check`` runs the same with it off (the default), for the comparison
+docs/controllers.md quotes.
 """
 
 from __future__ import annotations
@@ -25,24 +26,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
 
 from _ctl_harness import audit_failure, initial_tank_j, run_loop  # noqa: E402
-from test_assumptions import PUSH, SUITE, P  # noqa: E402
-
-from teleop.control import yield_guard  # noqa: E402
+from test_assumptions import P_SET, PUSH, SUITE, P  # noqa: E402
 
 OPERATORS_N_PER_M = (500.0, 1000.0, 2000.0, 3000.0, 5000.0, 8000.0, 12000.0)
 PERIODS_S = (2.0, 3.0, 4.0, 5.0, 6.0, 8.0)
 GAINS = (0.2, 0.25, 1.0 / 3.0, 0.4, 0.5)
 
 
-def scan(seconds: float) -> tuple[int, int, int]:
+def scan(seconds: float, set_check: bool) -> tuple[int, int, int]:
     """(runs, runs that broke the bound, of those never flagged); a line per run."""
     broken = unflagged = runs = 0
-    initial = initial_tank_j(SUITE, P)
+    p = P_SET if set_check else P
+    initial = initial_tank_j(SUITE, p)
     for k_op, period, gain in itertools.product(OPERATORS_N_PER_M, PERIODS_S, GAINS):
         sc = replace(PUSH, op_stiffness=k_op, ref_period_s=period, sensor_gain_factor=gain,
                      steps=round(seconds * 1000.0))
         t0 = time.perf_counter()
-        r = run_loop(SUITE, P, sc)
+        r = run_loop(SUITE, p, sc)
         low = min(r.audit_margin_j(initial))
         bad = audit_failure(r, initial) != ""
         runs += 1
@@ -57,12 +57,10 @@ def scan(seconds: float) -> tuple[int, int, int]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--no-set-check", action="store_true",
-                    help="the end-of-contact set check off (the guard as before it)")
+                    help="the end-of-contact set check off (the default configuration)")
     ap.add_argument("--seconds", type=float, default=6.0, help="virtual seconds per run")
     a = ap.parse_args()
-    if a.no_set_check:
-        yield_guard.took_a_set = lambda *_a: False  # type: ignore[assignment]
-    runs, broken, unflagged = scan(a.seconds)
+    runs, broken, unflagged = scan(a.seconds, not a.no_set_check)
     print(f"{runs} runs: {broken} broke the bound, {unflagged} of them never flagged")
     return 0
 
