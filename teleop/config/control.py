@@ -121,11 +121,11 @@ class TactileConfig:
                                          "finger as yielding; its further advance is then "
                                          "charged at the servo's torque (0: guard off)",
                                          lo=0.0, hi=1.0)
-    yield_set_check: bool = param(False, "yielding-contact guard: also judge each contact "
+    yield_set_check: bool = param(True, "yielding-contact guard: also judge each contact "
                                   "when it ends by the set it left (quick grasps too brief "
-                                  "for the chords); off by default: its worst-case charge "
-                                  "starves the hard operator's later grasps of a crushable "
-                                  "object (docs/controllers.md)")
+                                  "for the chords): a set is charged at the cells' gain the "
+                                  "gain cross-check measured in the contact, else the "
+                                  "finger is flagged (docs/controllers.md)")
     stall_window_rad: float = param(0.1, "unseen-contact guard: inward motor travel (joint "
                                     "side) over which the proximal joint's advance is measured "
                                     "(0: guard off)", unit="rad", lo=0.0, hi=1.0)

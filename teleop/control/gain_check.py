@@ -43,6 +43,19 @@ Chosen over charging ``tau_max`` per radian (the yield guard's answer)
 because a miscalibrated sensor stays miscalibrated: the hand keeps working, every grasp paid
 at the measured ratio, where ``tau_max`` would empty the 20 J tank in a few grasps.
 
+*A set found when a contact ends* (the yield guard's set check,
+:func:`teleop.control.yield_guard.took_a_set`).  Along each contact the track keeps the cells'
+work into the object and the largest ``upper / tau_cells`` of the contact's resolved windows,
+``r``, whether or not they read low.  Each is a bound on the gain (``1/g <= r``), so the
+object took at most ``r`` times the cells' work while the tank paid ``m`` times it: a set on a
+finger with ``r`` is charged ``(r - m)`` of the contact's cells' work (:func:`set_charge_j`;
+nothing when ``r <= m``), instead of the servo's torque over the contact's whole winding,
+the yield guard's charge for a contact no window measured.  True cells under a firm grasp
+measure ``r`` near 1.1 and a dent costs them next to nothing; at the worst case, the hard
+operator's first grasp of the crushable cylinder cost one finger's set ~6 J, and the tank did
+not recover under the later grasps (docs/controllers.md).  The contact's figures end when
+its cells stop reading.
+
 What it cannot see: a grasp that never stands still for a window (the check needs one: a
 contact that keeps crushing at speed is the yield guard's), a contact moment smaller than about
 ``tol / (1 - m g)`` (a light touch), and cells reading low on the distal pad alone while the
@@ -79,6 +92,8 @@ class GainTrack:
     low_windows: int = 0  # windows in a row reading low
     scale: float = 1.0  # the cells' charges are multiplied by this (> 1: flagged, latched)
     into_j: float = 0.0  # the cells' estimated work into the object so far (before the scale)
+    contact_into_j: float = 0.0  # ... over the contact under way (before the scale)
+    contact_ratio: float = 0.0  # the largest upper bound / cells' moment of its resolved windows
 
     @property
     def low(self) -> bool:
@@ -103,6 +118,22 @@ def servo_moment_nm(load_units: float, proximal_rad: float, model: TactileModel)
     return model.load_torque_nm_per_unit * load_units - spring
 
 
+def set_charge_j(track: GainTrack, into_j: float, margin: float) -> float | None:
+    """What a set found when a contact ends (:func:`teleop.control.yield_guard.took_a_set`)
+    costs a finger whose cells a resolved window of that contact measured: ``track`` its
+    gain track of the contact's last sample in it, ``into_j`` the cells' work into the object
+    over the sample that ended it.  Each resolved window bounds the cells' gain from below,
+    ``g >= tau_c / upper``; the largest of the contact's ratios ``r`` is the safe one.  The
+    object took at most ``r`` times what the cells estimate it was given; the tank paid ``m``
+    times that (while the net is positive), so it is short at most ``(r - m)`` of the cells'
+    work into the object over the contact, the set's plastic work included; nothing when
+    ``r <= m``.  ``None`` when no window measured the cells: only the servo's worst case
+    (the yield guard's flag) bounds that contact."""
+    if track.contact_ratio <= 0.0:
+        return None
+    return max(track.contact_ratio - margin, 0.0) * (track.contact_into_j + into_j)
+
+
 def reads_low(lower_nm: float, cells_nm: float, margin: float) -> bool:
     """A window's verdict: the least contact moment the servo's load allows, ``lower_nm``,
     exceeds the most the cells' ``cells_nm`` can stand for within their gain ``margin``."""
@@ -123,21 +154,26 @@ def step_gain(prev: GainTrack, f: FingerState, cells_nm: float, into_j: float, d
     motor, proximal, load = f.motor_angle_rad, f.proximal_rad, f.load_units
     valid = (cells_nm > 0.0 and proximal > OFF_STOP_RAD
              and math.isfinite(motor) and math.isfinite(proximal) and math.isfinite(load))
-    if not valid:  # no contact seen, on the stop, or a missing reading: no window
+    if cells_nm <= 0.0:  # no contact seen: no window, and the contact's figures end
         return GainTrack(scale=prev.scale, into_j=into), 0.0
+    c_into, ratio = prev.contact_into_j + into_j, prev.contact_ratio
+    if not valid:  # on the stop or a missing reading: no window (the contact's figures go on)
+        return GainTrack(scale=prev.scale, into_j=into, contact_into_j=c_into,
+                         contact_ratio=ratio), 0.0
     servo = servo_moment_nm(load, proximal, model)
     still = model.gain_check_still_rad
     if (math.isnan(prev.anchor_motor_rad) or abs(motor - prev.anchor_motor_rad) > still
             or abs(proximal - prev.anchor_proximal_rad) > still):
         # a first sample in contact, or the finger moved: a new window starts here (and the
         # windows in a row start again: the check wants a grasp held throughout)
-        return GainTrack(motor, proximal, 0.0, 1, servo, cells_nm, 0, prev.scale, into), 0.0
+        return GainTrack(motor, proximal, 0.0, 1, servo, cells_nm, 0, prev.scale, into,
+                         c_into, ratio), 0.0
     n = prev.samples + 1
     held = prev.held_s + dt_s
     s_sum, c_sum = prev.servo_nm + servo, prev.cells_nm + cells_nm
     if held < window - 1e-9:  # (a sum of sample periods: not exactly the window)
         return GainTrack(prev.anchor_motor_rad, prev.anchor_proximal_rad, held, n, s_sum,
-                         c_sum, prev.low_windows, prev.scale, into), 0.0
+                         c_sum, prev.low_windows, prev.scale, into, c_into, ratio), 0.0
     tau_s, tau_c = s_sum / n, c_sum / n
     v = (motor - prev.anchor_motor_rad) / held
     c_v, tol = model.gain_check_damping_nm_s_per_rad, model.gain_check_tolerance_nm
@@ -152,7 +188,10 @@ def step_gain(prev: GainTrack, f: FingerState, cells_nm: float, into_j: float, d
     if (scale > 1.0 or low >= LOW_WINDOWS) and lower >= tol:
         scale = max(scale, upper / tau_c)
     recharge = (scale - prev.scale) * prev.into_j
-    nxt = GainTrack(motor, proximal, 0.0, 1, servo, cells_nm, low, scale, into)
+    if lower >= tol:  # a resolved window: its bound on the gain, for a set found later
+        ratio = max(ratio, upper / tau_c)
+    nxt = GainTrack(motor, proximal, 0.0, 1, servo, cells_nm, low, scale, into, c_into,
+                    ratio)
     return nxt, recharge
 
 
@@ -176,4 +215,4 @@ def check_gains(model: TactileModel, prev: tuple[GainTrack, ...], pads: tuple[Pa
 
 
 __all__ = ["LOW_WINDOWS", "OFF_STOP_RAD", "UNCHECKED", "GainTrack", "cells_moment_nm",
-           "check_gains", "reads_low", "servo_moment_nm", "step_gain"]
+           "check_gains", "reads_low", "set_charge_j", "servo_moment_nm", "step_gain"]

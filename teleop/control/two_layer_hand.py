@@ -19,7 +19,7 @@ from teleop.control.energy_tank import (
     cap_tank,
     quantum_j,
 )
-from teleop.control.gain_check import UNCHECKED, GainTrack, check_gains
+from teleop.control.gain_check import UNCHECKED, GainTrack, check_gains, set_charge_j
 from teleop.control.interface import ControlParams, HandOutput
 from teleop.control.object_port import PadTrack, margin_charge_j, margin_net_j, track_fingers
 from teleop.control.passivity_layer import (
@@ -38,6 +38,7 @@ from teleop.control.transparency_layer import (
 )
 from teleop.control.yield_guard import (
     NO_CONTACT,
+    SET_FOUND,
     YieldTrack,
     flag_recharge_j,
     pad_advance_m,
@@ -152,21 +153,33 @@ def hand_hold_j(p: ControlParams) -> float:
 
 
 def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...],
-                  x: Triple) -> tuple[YieldTrack, ...]:
+                  x: Triple, works: tuple[tuple[float, float], ...] = ()
+                  ) -> tuple[tuple[YieldTrack, ...], float]:
     """The yielding-contact guard's step for the three fingers: each one's total pad force
-    and the pads' force-weighted advance driven by the proximal joint over the sample."""
+    and the pads' force-weighted advance driven by the proximal joint over the sample.
+    Returns the tracks and what the sets found at the contacts' ends cost the fingers whose
+    cells the gain cross-check measured in that contact (:func:`set_charge_j`, ``works``
+    the cells' ``(into, back)`` over the sample, before any scale): those are charged that
+    and not flagged; a set on a finger no window measured flags it (the servo's worst case,
+    :func:`flag_recharge_j`)."""
     before = s.pads or pads
     t = p.tactile
     x_prev = s.x_prev or x
-    out = []
-    for g, a, b, x_i, w_i in zip(s.yields, before, pads, x, x_prev, strict=False):
+    out, set_j = [], 0.0
+    for i, (g, a, b, x_i, w_i) in enumerate(zip(s.yields, before, pads, x, x_prev,
+                                                  strict=False)):
         adv = pad_advance_m((b.prox_force_n, b.dist_force_n), (b.prox_x_m, b.dist_x_m),
                             b.proximal_rad - a.proximal_rad, b.distal_rad,
                             t.proximal_length_m)
-        out.append(step_yield(g, b.prox_force_n + b.dist_force_n, adv, x_i,
-                              t.yield_window_m, t.yield_stiffness_ratio, w_i,
-                              t.yield_set_check))
-    return tuple(out)
+        y = step_yield(g, b.prox_force_n + b.dist_force_n, adv, x_i, t.yield_window_m,
+                       t.yield_stiffness_ratio, w_i, t.yield_set_check)
+        if y is SET_FOUND and i < len(s.gains):
+            into = works[i][0] if i < len(works) else 0.0
+            measured = set_charge_j(s.gains[i], into, t.force_margin)
+            if measured is not None:
+                y, set_j = NO_CONTACT, set_j + measured
+        out.append(y)
+    return tuple(out), set_j
 
 
 def stall_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...],
@@ -194,8 +207,10 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     pads, works = track_fingers(p.tactile, s.pads, fingers[:3])
     # cells found reading low against the servo's load: their work scaled up, the earlier
     # work re-charged (teleop.control.gain_check; nothing changes while none is)
-    gains, works, recharge = check_gains(p.tactile, s.gains, pads, fingers[:3], works, dt_s)
-    yields = guard_fingers(p, s, pads, x)
+    gains, scaled, recharge = check_gains(p.tactile, s.gains, pads, fingers[:3], works,
+                                          dt_s)
+    yields, set_j = guard_fingers(p, s, pads, x, works)
+    works = scaled
     stalls = stall_fingers(p, s, pads, fingers[:3], x)
     blind = tuple(g.yielding or h.stalled for g, h in zip(yields, stalls, strict=False))
     trusted = [w for w, b in zip(works, blind, strict=False) if not b]
@@ -209,8 +224,10 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     # a finger just flagged: its advance before the flag, which the cells were trusted for
     # (yield) or saw nothing of (stall), at the servo's torque too (outside the one-sample
     # cap: past samples' work)
+    # a set found when a measured finger's contact ended: the part of the contact's work
+    # its measured gain leaves unpaid (outside the cap too)
     flagged = (flag_recharge_j(s.yields, yields, p.servo_torque_max_nm)
-               + stall_recharge_j(s.stalls, stalls, p.servo_torque_max_nm))
+               + stall_recharge_j(s.stalls, stalls, p.servo_torque_max_nm) + set_j)
     # one sample cannot deliver more than the fingers held at its start (servo potential,
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that

@@ -34,16 +34,17 @@ when it is spent, and the hand reports the finger (an alarm: the contact is crus
 sliding and its tactile estimate is not relied on).
 
 A contact too brief for two flat chords (a quick grasp: the pads crush the object for less
-than two windows, then let go) can be judged once more when it ends (``set_check``, the
-hand's ``yield_set_check``: off by default, since its worst-case charge starves the hard
-operator's later grasps of a crushable object; docs/controllers.md), by the set it left
+than two windows, then let go) is judged once more when it ends (``set_check``, the hand's
+``yield_set_check``, on by default), by the set it left
 (:func:`took_a_set`): an elastic contact unloads along the path it loaded on, so its force
 runs out where the loading path began; a crushed one loses its force with the pads still
 well in.  Along the contact the guard keeps the loading path (a point each time the force
 passes the last by 5 %); when the force is gone, pads that stood at the contact's last
 sample more than a window beyond where the path first reached that sample's force, less half
 the sample's own motion (:func:`set_beyond_m`), flag the finger for that one sample
-(:data:`SET_FOUND`), and the flag's re-charge pays the episode's winding.  Only the last
+(:data:`SET_FOUND`), and the flag's re-charge pays the episode's winding (the hand charges a
+finger whose cells the gain cross-check measured in the contact at the gain it measured
+instead, and does not flag it: :func:`teleop.control.gain_check.set_charge_j`).  Only the last
 sample is judged: while a contact lasts, the force against the estimated advance may stray
 from the path in either direction (a fingertip sliding along a block's face reads several
 millimetres of it), but an elastic contact's force runs out where it began.  The shape
@@ -148,7 +149,7 @@ def step_yield(prev: YieldTrack, force_n: float, advance_m: float, motor_rad: fl
     unloading, not a yield.  The episode's winding (the motor's inward motion, the sample
     in which the force was first seen included) is what :func:`flag_recharge_j` charges
     when the flag is raised.  ``set_check``: judge a contact that ends unflagged by the
-    set it left (:func:`took_a_set`; the hand's ``yield_set_check``, off by default)."""
+    set it left (:func:`took_a_set`; the hand's ``yield_set_check``, on by default)."""
     if force_n <= 0.0:
         # the contact ended: unflagged, it is judged once more by the set it left
         if (set_check and prev.in_contact and not prev.yielding and stiffness_ratio > 0.0

@@ -1,14 +1,14 @@
 """Quick grasps of the crushable cylinder with cells reading low, on the simulated hand.
 
-    python tests/services/quick_grasp_lockstep.py [--set-check]
+    python tests/services/quick_grasp_lockstep.py [--no-set-check]
 
 Lockstep, 15 s, seed 1, the hard operator's script shortened (``master.virtual.hold_s`` /
 ``ramp_s`` / ``release_s``), the grid's ``crushable-cylinder``, cells reading a third or a
 fifth (``hand.sim.tactile_gain``).  Per run: the most fingers flagged yielding at once, what
 the object kept by the simulator's audit and what the hand's tank paid by its ledger at the
 end, the lowest paid-minus-kept over the run, and the loop's audit margin.
-``--set-check`` runs the same with the yield guard's end-of-contact set check on
-(``controller.tactile.yield_set_check``, off by default).
+``--no-set-check`` runs the same with the yield guard's end-of-contact set check off
+(``controller.tactile.yield_set_check``, on by default).
 docs/controllers.md quotes the figures.
 """
 
@@ -32,7 +32,8 @@ GAINS = (0.333, 0.2)
 
 
 def main() -> int:
-    extra = ["controller.tactile.yield_set_check=true"] if "--set-check" in sys.argv[1:] else []
+    off = "--no-set-check" in sys.argv[1:]
+    extra = ["controller.tactile.yield_set_check=false"] if off else []
     for (hold, close, release), gain in ((s, g) for s in SCRIPTS for g in GAINS):
         cfg = with_object(load_config(None, [
             f"hand.sim.tactile_gain={gain}", f"master.virtual.hold_s={hold}",

@@ -160,8 +160,9 @@ def test_without_the_flag_recharge_the_firmer_operator_breaks_the_bound(
 
 #: the yielding push in quick grasps (3 s): each contact ends before two flat chords form
 QUICK_PUSH = replace(PUSH, ref_period_s=3.0)
-#: the guard with its end-of-contact set check on (``yield_set_check``, off by default)
+#: the guard with its end-of-contact set check on (``yield_set_check``, the default) and off
 P_SET = replace(P, tactile=replace(P.tactile, yield_set_check=True))
+P_NO_SET = replace(P, tactile=replace(P.tactile, yield_set_check=False))
 
 
 @pytest.mark.parametrize("gain", [0.2, 1.0 / 3.0, 0.4])
@@ -180,14 +181,15 @@ def test_quick_grasps_of_a_yielding_object_read_low_are_flagged_by_their_set(
 
 def test_without_the_set_check_quick_grasps_break_the_bound(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """Kept as a test: the set check off (the default, ``yield_set_check = false``; and its
-    verdict patched out with it on), the quick grasps at a third are never flagged and the
-    object keeps what the cells under-charged (the audit's margin fell to -30 mJ in 6 s
-    with 0.1 J tanks, 2026-11-29)."""
+    """Kept as a test: the set check off (``yield_set_check = false``; and its verdict
+    patched out with it on), the quick grasps at a third are never flagged and the object
+    keeps what the cells under-charged (the audit's margin fell to -30 mJ in 6 s with 0.1 J
+    tanks, 2026-11-29)."""
+    assert P_SET == P  # on by default
     sc = replace(QUICK_PUSH, sensor_gain_factor=1.0 / 3.0)
-    r = run(P, sc)
+    r = run(P_NO_SET, sc)
     assert r.yielding_hand == 0
-    assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
+    assert audit_failure(r, initial_tank_j(SUITE, P_NO_SET)) != ""
     monkeypatch.setattr(yield_guard, "took_a_set", lambda *a: False)
     r = run_loop(SUITE, P_SET, sc)
     assert r.yielding_hand == 0

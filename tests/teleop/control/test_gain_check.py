@@ -28,7 +28,7 @@ from teleop.control.gain_check import (
     servo_moment_nm,
     step_gain,
 )
-from teleop.control.interface import control_params
+from teleop.control.interface import HandOutput, control_params
 from teleop.control.object_port import PadTrack, TactileModel, kernel
 from teleop.messages import FingerState, HandCommand, HandMode, Header
 from tests.teleop.control.two_layer_parts import patch_sides
@@ -234,9 +234,10 @@ def _pressing(proximal_rad: float, force_n: float) -> FingerState:
                        tuple(v > 20.0 for v in pressure))
 
 
-def _charged_j(gains: tuple[GainTrack, ...]) -> float:
-    """What the two-layer hand's tank pays for one sample in which every finger's pad,
-    pressing 5 N, moves 0.01 rad into the object, its check's tracks ``gains`` before it."""
+def pressing_sample(gains: tuple[GainTrack, ...]) -> tuple[float, HandOutput]:
+    """One sample of the two-layer hand in which every finger's pad, pressing 5 N, moves
+    0.01 rad into the object, its check's tracks ``gains`` before it: ``(what the tank
+    paid, the hand's output)``."""
     p = replace(control_params(ControllerConfig()), transfer_fraction=0.0)
     cmd = HandCommand(header=Header(seq=1, t_s=0.0, energy_total_j=0.0),
                       finger_setpoint_rad=(0.5,) * 3, preshape_rad=0.0, mode=HandMode.POSITION)
@@ -244,8 +245,13 @@ def _charged_j(gains: tuple[GainTrack, ...]) -> float:
     s, _ = two_layer.step_hand_object(s, p, (_pressing(0.2, 5.0),) * 3, cmd, DT_S)
     s = replace(s, gains=gains)
     before = s.ledger.port_out_j
-    s, _ = two_layer.step_hand_object(s, p, (_pressing(0.21, 5.0),) * 3, cmd, DT_S)
-    return s.ledger.port_out_j - before
+    s, out = two_layer.step_hand_object(s, p, (_pressing(0.21, 5.0),) * 3, cmd, DT_S)
+    return s.ledger.port_out_j - before, out
+
+
+def _charged_j(gains: tuple[GainTrack, ...]) -> float:
+    """What the tank pays for :func:`pressing_sample`."""
+    return pressing_sample(gains)[0]
 
 
 def test_the_hand_layer_charges_a_flagged_fingers_work_at_its_scale() -> None:
