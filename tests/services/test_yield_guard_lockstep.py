@@ -247,3 +247,26 @@ def test_a_set_on_cells_the_gain_check_measured_does_not_starve_later_grasps(
     monkeypatch.setattr(two_layer_hand, "set_charge_j", lambda *_a: None)
     worst = peaks()
     assert worst[0] == pytest.approx(built[0], rel=1e-3) and worst[1] < 0.8 * worst[0]
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason=(
+    "known defect: under link delays of 2 ms and more the hard operator's first grasp of the "
+    "crushable cylinder (true cells) is chord-flagged and the flag's re-charge at the servo's "
+    "worst case drains the hand's tank: the grasps fall to 0.81 of the first by 60 s "
+    "(3,333-3,342 with the re-charge dropped; charged instead at the gain the cross-check "
+    "measured in the contact before the flag, where it had one, the same 0.81: tried "
+    "2026-11-29, not kept); live over zenoh 3 of 4 runs fall likewise (docs/controllers.md, "
+    "'What a set costs')"))
+def test_the_hard_operators_crushable_grasps_hold_up_under_a_small_delay() -> None:
+    """Issue 13's floor (every grasp at least 90 % of the first's peak pressure) for the hard
+    operator on the crushable cylinder with 2 ms on both links, 30 s (seven grasps)."""
+    cfg = with_object(load_config(None, [
+        "master.virtual.style=hard", "links.controller_hand.delay_s=0.002",
+        "links.master_controller.delay_s=0.002"]), "crushable-cylinder")
+    r = run_lockstep(cfg, 30.0, seed=1)
+    g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
+                            r.distal_rad, r.displayed_force_n, cfg)
+    peaks = [s.peak_pressure for s in g.grasps]
+    assert len(peaks) >= 6
+    assert min(peaks) >= 0.9 * peaks[0], [round(p) for p in peaks]
