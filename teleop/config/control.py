@@ -126,6 +126,12 @@ class TactileConfig:
                                   "for the chords): a set is charged at the cells' gain the "
                                   "gain cross-check measured in the contact, else the "
                                   "finger is flagged (docs/controllers.md)")
+    yield_credit: bool = param(False, "yielding-contact guard: once the gain cross-check has "
+                               "measured a flagged finger's cells in the contact, credit back "
+                               "what its flag charged at the servo's worst case beyond the "
+                               "measured ratio times the contact's estimated work (keeps the "
+                               "hard operator's crushable-cylinder grasps under delay; rests on "
+                               "the gain check's assumptions; docs/controllers.md)")
     stall_window_rad: float = param(0.1, "unseen-contact guard: inward motor travel (joint "
                                     "side) over which the proximal joint's advance is measured "
                                     "(0: guard off)", unit="rad", lo=0.0, hi=1.0)

@@ -75,6 +75,11 @@ class HandPortState:
     #: per finger: hand time its contact model became valid (nan: none), for the hand's
     #: touch cap (:func:`teleop.control.touch_cap.hand_touch_cap`)
     touch_since: Triple = NO_TOUCH
+    #: per finger: what its contact has paid at the servo's worst case (yield flag re-charge
+    #: and the flagged samples' motion), and what of it was credited back once the gain
+    #: cross-check measured the cells in the contact (:func:`worst_case_credit_j`)
+    worst_j: Triple = (0.0, 0.0, 0.0)
+    credited_j: Triple = (0.0, 0.0, 0.0)
 
 
 def init_hand(p: ControlParams) -> HandPortState:
@@ -150,6 +155,22 @@ def hand_hold_j(p: ControlParams) -> float:
     k, tmax = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm
     n = sum(1 for on in p.finger_enable[:3] if on)
     return n * reservation_j(tmax / k, k, tmax, p.tendon_stiffness_nm_per_rad)
+
+
+def worst_case_credit_j(worst_j: Triple, credited_j: Triple, gains: tuple[GainTrack, ...]
+                        ) -> tuple[Triple, float]:
+    """What goes back to the tank of a flagged finger's worst-case charges once the gain
+    cross-check has measured its cells in the contact: the contact needs no more than ``r``
+    times the cells' estimated work into the object (``r`` the largest ratio of its resolved
+    windows: ``1/g <= r``), so what it paid at the servo's worst case beyond that is
+    credited.  The credit so far follows ``max(worst - r W, 0)`` as ``r`` and ``W`` grow (a
+    fall is charged back).  Returns the credit so far per finger and this sample's change."""
+    out, delta = [], 0.0
+    for w, c, g in zip(worst_j, credited_j, gains, strict=False):
+        target = max(w - g.contact_ratio * g.contact_into_j, 0.0) if g.contact_ratio > 0 else 0.0
+        out.append(target)
+        delta += target - c
+    return tuple(out), delta  # type: ignore[return-value]
 
 
 def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...],
@@ -232,6 +253,7 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that
     cap = s.held_j + p.finger_kinetic_j * len(fingers[:3])
+    crush_all = crush
     crush = min(crush, cap)
     if charge > cap - crush:
         charge = cap - crush
@@ -240,6 +262,22 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
         before, net = margin_charge_j(p.tactile, net), net + recharge
         charge += margin_charge_j(p.tactile, net) - before
     charge += crush + flagged
+    # worst-case charges per finger this contact; credited back once its cells are measured
+    share = crush / crush_all if crush_all > 0.0 else 0.0
+    per = [0.0, 0.0, 0.0]
+    if s.x_prev is not None:
+        for i in range(3):
+            if blind[i]:
+                per[i] += p.servo_torque_max_nm * max(x[i] - s.x_prev[i], 0.0) * share
+    for i, (b, a) in enumerate(zip(s.yields, yields, strict=False)):
+        if a.yielding and not b.yielding:
+            per[i] += p.servo_torque_max_nm * b.wound_rad
+    ended = [g.contact_into_j == 0.0 and g.contact_ratio == 0.0 for g in gains]
+    worst = tuple(0.0 if e else w + d for w, d, e in zip(s.worst_j, per, ended, strict=False))
+    credited0 = tuple(0.0 if e else c for c, e in zip(s.credited_j, ended, strict=False))
+    credited, credit = (worst_case_credit_j(worst, credited0, gains)  # type: ignore[arg-type]
+                        if p.tactile.yield_credit else ((0.0, 0.0, 0.0), 0.0))
+    charge -= credit
     out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)
@@ -260,7 +298,8 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
                      cells_low=sum(1 for g in gains if g.low))
     return HandPortState(ledger=led, x_prev=x, setpoint_prev=y, rx=rx, pads=pads,
                          object_net_j=net, held_j=held, models=s.models, yields=yields,
-                         stalls=stalls, gains=gains), out
+                         stalls=stalls, gains=gains, worst_j=worst,
+                         credited_j=credited), out
 
 
 def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ...],

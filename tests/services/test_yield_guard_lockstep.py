@@ -37,6 +37,7 @@ GAIN_CHECK_OFF = "controller.tactile.gain_check_window_s=0"
 GUARD_OFF = "controller.tactile.yield_stiffness_ratio=0"
 SET_CHECK = "controller.tactile.yield_set_check=true"  # the default, said where it matters
 SET_OFF = "controller.tactile.yield_set_check=false"
+CREDIT = "controller.tactile.yield_credit=true"
 YIELD_OFF = (*CRUSH, GUARD_OFF)
 
 #: every grasp this module judges (override tuples), run together on two processes
@@ -46,7 +47,8 @@ GRASPS = (CRUSH, YIELD_OFF, (*YIELD_OFF, GAIN_CHECK_OFF), DEAD,
           *(("hand.sim.object.yield_force_n=5", f"hand.sim.tactile_gain={g}") for g in GAINS),
           HARDENING, (*HARDENING, GAIN_CHECK_OFF), (*HARDENING, GUARD_OFF),
           (*HARDENING, GUARD_OFF, GAIN_CHECK_OFF), (*HARDENING, SET_CHECK),
-          (*HARDENING, SET_CHECK, GAIN_CHECK_OFF), (*HARDENING, SET_OFF, GAIN_CHECK_OFF), HIGH)
+          (*HARDENING, SET_CHECK, GAIN_CHECK_OFF), (*HARDENING, SET_OFF, GAIN_CHECK_OFF), HIGH,
+          (*CRUSH, CREDIT), (*HARDENING, CREDIT))
 
 
 @pytest.fixture(scope="module")
@@ -261,12 +263,56 @@ def test_a_set_on_cells_the_gain_check_measured_does_not_starve_later_grasps(
 def test_the_hard_operators_crushable_grasps_hold_up_under_a_small_delay() -> None:
     """Issue 13's floor (every grasp at least 90 % of the first's peak pressure) for the hard
     operator on the crushable cylinder with 2 ms on both links, 30 s (seven grasps)."""
+    peaks = _hard_crushable_peaks()
+    assert len(peaks) >= 6
+    assert min(peaks) >= 0.9 * peaks[0], [round(p) for p in peaks]
+
+
+def _hard_crushable_peaks(*overrides: str) -> list[float]:
     cfg = with_object(load_config(None, [
         "master.virtual.style=hard", "links.controller_hand.delay_s=0.002",
-        "links.master_controller.delay_s=0.002"]), "crushable-cylinder")
+        "links.master_controller.delay_s=0.002", *overrides]), "crushable-cylinder")
     r = run_lockstep(cfg, 30.0, seed=1)
     g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
                             r.distal_rad, r.displayed_force_n, cfg)
-    peaks = [s.peak_pressure for s in g.grasps]
+    return [s.peak_pressure for s in g.grasps]
+
+
+@pytest.mark.slow
+def test_with_the_credit_the_hard_operators_crushable_grasps_hold_up_under_a_small_delay(
+        ) -> None:
+    """The defect above with ``yield_credit`` on: once the gain cross-check has measured the
+    flagged fingers' cells in the grasp (``r`` about 1.15), what their flags charged at the
+    servo's worst case beyond ``r`` times the contact's estimated work goes back to the
+    tank, and every grasp holds (measured 2026-11-29, 60 s: 3,326-3,342, the tank ending
+    16.7 J, where it ends 1.95 J without).  The default (the credit off) is the xfail
+    above, kept as this test's mutant."""
+    peaks = _hard_crushable_peaks(CREDIT)
     assert len(peaks) >= 6
     assert min(peaks) >= 0.9 * peaks[0], [round(p) for p in peaks]
+
+
+@pytest.mark.slow
+def test_with_the_credit_cells_reading_low_still_pay_what_the_object_took(
+        first_grasp, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The credit rests on the gain the cross-check measured: cells reading a third on the
+    crushing and on the hardening skin, their flags' worst case credited down to ``r``
+    times the cells' work, still pay at least what the object kept (the physical audit).
+    Judged alone too, the gain check's own verdict switched off (``LOW_WINDOWS`` out of
+    reach: nothing scaled) on the crushing skin; the mutant (every worst-case joule
+    credited once a window measured the cells) then pays less than the skin kept."""
+    for overrides in ((*CRUSH, CREDIT), (*HARDENING, CREDIT)):
+        obj, paid, _, _, _ = first_grasp(*overrides)
+        assert obj > 0.05 and paid >= obj, (overrides, obj, paid)
+    monkeypatch.setattr(gain_check, "LOW_WINDOWS", 10**6)
+    obj, paid, _, _, low = grasp_run(*CRUSH, CREDIT)
+    assert low == 0 and obj > 0.05 and paid >= obj
+
+    def everything(worst_j, _credited_j, gains):  # type: ignore[no-untyped-def]
+        out = tuple(w if g.contact_ratio > 0 else 0.0
+                    for w, g in zip(worst_j, gains, strict=False))
+        return out, sum(out) - sum(_credited_j)
+
+    monkeypatch.setattr(two_layer_hand, "worst_case_credit_j", everything)
+    obj, paid, _, _, _ = grasp_run(*CRUSH, CREDIT)
+    assert paid < obj

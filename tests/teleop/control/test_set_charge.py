@@ -18,6 +18,7 @@ import pytest
 
 from teleop.control import gain_check, two_layer_hand
 from teleop.control.gain_check import UNCHECKED, GainTrack, set_charge_j, step_gain
+from teleop.control.two_layer_hand import worst_case_credit_j
 from teleop.control.yield_guard import SET_FOUND
 from teleop.messages import FingerState
 from tests.teleop.control.test_gain_check import DT_S, MODEL, hold, load_for, pressing_sample
@@ -171,3 +172,62 @@ def test_contact_figures_kept_past_the_release_fail_a_check(
 
 def test_the_checks_pass_as_built() -> None:
     assert not any(_fails(c) for c in CHECKS.values())
+
+
+# ------------------------------------------- the worst case credited back (yield_credit)
+def _measured(ratio: float, into_j: float) -> GainTrack:
+    return GainTrack(contact_into_j=into_j, contact_ratio=ratio)
+
+
+def test_no_credit_before_a_window_measures_the_cells() -> None:
+    credited, delta = worst_case_credit_j((5.0, 5.0, 0.0), (0.0,) * 3,
+                                          (UNCHECKED, _measured(0.0, 1.0), UNCHECKED))
+    assert credited == (0.0, 0.0, 0.0) and delta == 0.0
+
+
+def test_the_credit_keeps_r_times_the_contacts_work() -> None:
+    """Paid 5 J at the worst case for a contact whose cells estimate 1 J into the object and
+    read at least 1/1.2 of the force: 1.2 J is kept, 3.8 J goes back; a finger that paid
+    less than that keeps all of it."""
+    credited, delta = worst_case_credit_j((5.0, 1.0, 0.0), (0.0,) * 3,
+                                          (_measured(1.2, 1.0), _measured(1.2, 1.0), UNCHECKED))
+    assert credited == pytest.approx((3.8, 0.0, 0.0)) and delta == pytest.approx(3.8)
+
+
+def test_a_credit_the_contact_outgrows_is_charged_back() -> None:
+    """The contact goes on: its estimated work and measured ratio grow, what it must keep
+    grows with them, and the credit given earlier is taken back as far as needed."""
+    credited, _ = worst_case_credit_j((5.0, 0.0, 0.0), (0.0,) * 3, (_measured(1.2, 1.0),) * 3)
+    later, delta = worst_case_credit_j((5.0, 0.0, 0.0), credited, (_measured(3.0, 1.5),) * 3)
+    assert later == pytest.approx((0.5, 0.0, 0.0)) and delta == pytest.approx(0.5 - 3.8)
+
+
+def _credit_all(worst_j: tuple[float, ...], credited_j: tuple[float, ...],
+                gains: tuple[GainTrack, ...]) -> tuple[tuple[float, ...], float]:
+    out = tuple(w if g.contact_ratio > 0 else 0.0 for w, g in zip(worst_j, gains, strict=False))
+    return out, sum(out) - sum(credited_j)
+
+
+def _never_charged_back(worst_j: tuple[float, ...], credited_j: tuple[float, ...],
+                        gains: tuple[GainTrack, ...]) -> tuple[tuple[float, ...], float]:
+    out, _ = two_layer_hand.worst_case_credit_j(worst_j, credited_j, gains)  # type: ignore[arg-type]
+    out = tuple(max(a, b) for a, b in zip(out, credited_j, strict=False))
+    return out, sum(out) - sum(credited_j)
+
+
+CREDIT_CHECKS: dict[str, Callable[[], None]] = {
+    "keeps": test_the_credit_keeps_r_times_the_contacts_work,
+    "back": test_a_credit_the_contact_outgrows_is_charged_back,
+}
+
+
+@pytest.mark.parametrize("mutant", [_credit_all, _never_charged_back],
+                         ids=["everything credited", "never charged back"])
+def test_a_broken_credit_fails_a_check(mutant: Callable[..., object],
+                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(sys.modules[__name__], "worst_case_credit_j", mutant)
+    assert any(_fails(c) for c in CREDIT_CHECKS.values())
+
+
+def test_the_credit_checks_pass_as_built() -> None:
+    assert not any(_fails(c) for c in CREDIT_CHECKS.values())
