@@ -41,9 +41,11 @@ from teleop.control.yield_guard import (
     SET_FOUND,
     YieldTrack,
     flag_recharge_j,
+    flag_recharges_j,
     pad_advance_m,
     step_yield,
     yield_charge_j,
+    yield_charges_j,
 )
 from teleop.frozen import fast_init
 from teleop.messages import (
@@ -173,6 +175,26 @@ def worst_case_credit_j(worst_j: Triple, credited_j: Triple, gains: tuple[GainTr
     return tuple(out), delta  # type: ignore[return-value]
 
 
+def credit_fingers(p: ControlParams, s: HandPortState, x: Triple, blind: tuple[bool, ...],
+                   yields: tuple[YieldTrack, ...], gains: tuple[GainTrack, ...],
+                   crush_share: float) -> tuple[Triple, Triple, float]:
+    """``yield_credit``'s bookkeeping for one sample: each finger's worst-case charges over
+    its contact (the flagged samples' motion, ``crush_share`` of it as the one-sample cap
+    let through, and the flag's re-charge; a contact whose gain track has ended starts
+    again at 0) and the credit (:func:`worst_case_credit_j`).  Returns ``(worst, credited,
+    this sample's credit)``."""
+    tmax = p.servo_torque_max_nm
+    moved = (yield_charges_j(x, s.x_prev, blind, tmax) if s.x_prev is not None
+             else (0.0, 0.0, 0.0))
+    flags = flag_recharges_j(s.yields, yields, tmax)
+    ended = [g.contact_into_j == 0.0 and g.contact_ratio == 0.0 for g in gains]
+    worst = tuple(0.0 if e else w + m * crush_share + f
+                  for w, m, f, e in zip(s.worst_j, moved, flags, ended, strict=False))
+    credited0 = tuple(0.0 if e else c for c, e in zip(s.credited_j, ended, strict=False))
+    credited, credit = worst_case_credit_j(worst, credited0, gains)  # type: ignore[arg-type]
+    return worst, credited, credit  # type: ignore[return-value]
+
+
 def guard_fingers(p: ControlParams, s: HandPortState, pads: tuple[PadTrack, ...],
                   x: Triple, works: tuple[tuple[float, float], ...] = ()
                   ) -> tuple[tuple[YieldTrack, ...], float]:
@@ -262,22 +284,13 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
         before, net = margin_charge_j(p.tactile, net), net + recharge
         charge += margin_charge_j(p.tactile, net) - before
     charge += crush + flagged
-    # worst-case charges per finger this contact; credited back once its cells are measured
-    share = crush / crush_all if crush_all > 0.0 else 0.0
-    per = [0.0, 0.0, 0.0]
-    if s.x_prev is not None:
-        for i in range(3):
-            if blind[i]:
-                per[i] += p.servo_torque_max_nm * max(x[i] - s.x_prev[i], 0.0) * share
-    for i, (b, a) in enumerate(zip(s.yields, yields, strict=False)):
-        if a.yielding and not b.yielding:
-            per[i] += p.servo_torque_max_nm * b.wound_rad
-    ended = [g.contact_into_j == 0.0 and g.contact_ratio == 0.0 for g in gains]
-    worst = tuple(0.0 if e else w + d for w, d, e in zip(s.worst_j, per, ended, strict=False))
-    credited0 = tuple(0.0 if e else c for c, e in zip(s.credited_j, ended, strict=False))
-    credited, credit = (worst_case_credit_j(worst, credited0, gains)  # type: ignore[arg-type]
-                        if p.tactile.yield_credit else ((0.0, 0.0, 0.0), 0.0))
-    charge -= credit
+    # worst-case charges per finger this contact, credited back once its cells are measured
+    # (``yield_credit``; off: nothing kept)
+    worst, credited = s.worst_j, s.credited_j
+    if p.tactile.yield_credit:
+        share = crush / crush_all if crush_all > 0.0 else 0.0
+        worst, credited, credit = credit_fingers(p, s, x, blind, yields, gains, share)
+        charge -= credit
     out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)

@@ -204,8 +204,14 @@ def yield_charge_j(x: tuple[float, ...], x_prev: tuple[float, ...],
                    yielding: tuple[bool, ...], torque_max_nm: float) -> float:
     """What the tank pays for the yielding fingers' last sample: ``tau_max`` times each one's
     inward motor motion (joint side), the servo's most work through the tendon."""
-    return sum(torque_max_nm * max(a - b, 0.0)
-               for a, b, y in zip(x, x_prev, yielding, strict=False) if y)
+    return sum(yield_charges_j(x, x_prev, yielding, torque_max_nm))
+
+
+def yield_charges_j(x: tuple[float, ...], x_prev: tuple[float, ...],
+                    yielding: tuple[bool, ...], torque_max_nm: float) -> tuple[float, ...]:
+    """:func:`yield_charge_j` per finger (0 for a finger not flagged)."""
+    return tuple(torque_max_nm * max(a - b, 0.0) if y else 0.0
+                 for a, b, y in zip(x, x_prev, yielding, strict=False))
 
 
 def flag_recharge_j(before: tuple[YieldTrack, ...], after: tuple[YieldTrack, ...],
@@ -216,9 +222,16 @@ def flag_recharge_j(before: tuple[YieldTrack, ...], after: tuple[YieldTrack, ...
     the cells were trusted for.  What the cells charged for that advance is not taken off
     (the one-sample cap may have cut it, so it is not known to have been paid): the
     advance before the flag is charged twice over rather than short."""
-    return sum(torque_max_nm * b.wound_rad for b, a in zip(before, after, strict=False)
-               if a.yielding and not b.yielding)
+    return sum(flag_recharges_j(before, after, torque_max_nm))
 
 
-__all__ = ["NO_CONTACT", "SET_FOUND", "YieldTrack", "flag_recharge_j", "pad_advance_m",
-           "set_beyond_m", "step_yield", "took_a_set", "yield_charge_j"]
+def flag_recharges_j(before: tuple[YieldTrack, ...], after: tuple[YieldTrack, ...],
+                     torque_max_nm: float) -> tuple[float, ...]:
+    """:func:`flag_recharge_j` per finger (0 for a finger not just flagged)."""
+    return tuple(torque_max_nm * b.wound_rad if a.yielding and not b.yielding else 0.0
+                 for b, a in zip(before, after, strict=False))
+
+
+__all__ = ["NO_CONTACT", "SET_FOUND", "YieldTrack", "flag_recharge_j", "flag_recharges_j",
+           "pad_advance_m", "set_beyond_m", "step_yield", "took_a_set", "yield_charge_j",
+           "yield_charges_j"]
