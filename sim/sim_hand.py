@@ -14,7 +14,8 @@ move at the driver's maximum speed (3.5 rad/s joint).  Readings follow the stock
 ``motor_angle_rad`` is the joint-side motor angle (shaft / 1.42), ``distal_rad`` the driver's
 estimate ``max(0, joint angle - proximal)``, ``load_units`` the signed present load,
 ``pressure``/``contact`` the 9 tactile sensors (contact above 20 raw; ``hand.sim.tactile_gain``
-scales the cells' true gain, a mis-calibrated sensor).  With
+scales the cells' true gain, a mis-calibrated sensor; ``hand.sim.distal_tactile_gain`` the
+distal pad's four alone on top of it).  With
 ``hand.sim.noise`` the encoders are quantised and loads and pressures noisy (seeded).
 """
 
@@ -68,6 +69,7 @@ class SimHand:
         self._rng = random.Random(seed) if cfg.sim.noise else None
         self._engine = engine(cfg.sim.engine)
         self._travel = cfg.dynamixel.finger_travel_rad
+        self._distal_gain = cfg.sim.distal_tactile_gain
         hold = MotorCommand("position", 0.0)
         self._cmd = HandMotorCommand((hold, hold, hold), 0.0)
         self.started = False
@@ -150,6 +152,9 @@ class SimHand:
         motor = fo.motor_angle_rad
         load = fo.motor_load_units
         pressure = fo.pressure
+        if self._distal_gain != 1.0:  # hand.sim.distal_tactile_gain: readings only
+            n = len(self.params.finger.proximal_sensor_x_m)
+            pressure = (*pressure[:n], *(v * self._distal_gain for v in pressure[n:]))
         rng = self._rng
         if rng is not None:
             prox = round((prox + rng.gauss(0.0, 0.002)) / PROXIMAL_COUNT_RAD) * PROXIMAL_COUNT_RAD

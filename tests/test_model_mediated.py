@@ -17,11 +17,11 @@ from services.lockstep import LockstepContext, run_lockstep
 from sim.contact import NO_OBJECT
 from teleop.analysis.grasps import format_grasps
 from teleop.analysis.stability import felt_true_force_ratio, tracking_hold_rad
-from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.analysis.sweep_objects import with_object
 from teleop.analysis.sweep_signals import signals_from_lockstep
 from teleop.config import TeleopConfig, load_config
 from tests.job_pool import JobPool, lockstep
+from tests.services.lockstep_grasps import grasps_of
 
 #: the sweep's scenario: close to 60 % of the travel over 1 s, then hold
 HOLD = ["master.virtual.closed_fraction=0.6", "master.virtual.repeat=false",
@@ -145,8 +145,7 @@ def test_repeated_grasps_under_delay_and_loss_all_hold_up_against_the_first(
     no longer overshoots (the touch is capped until the master has seen its model)."""
     cfg = repeated_cfg(delay_s)
     r = runs.result(("repeated", delay_s))
-    g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                            r.distal_rad, r.displayed_force_n, cfg)
+    g = grasps_of(r, cfg)
     assert len(g.grasps) >= 7
     assert g.min_pressure_ratio >= 0.9, format_grasps(g)
     assert g.min_closure_ratio >= 0.9, format_grasps(g)

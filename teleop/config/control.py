@@ -126,7 +126,7 @@ class TactileConfig:
                                   "for the chords): a set is charged at the cells' gain the "
                                   "gain cross-check measured in the contact, else the "
                                   "finger is flagged (docs/controllers.md)")
-    yield_credit: bool = param(False, "yielding-contact guard: once the gain cross-check has "
+    yield_credit: bool = param(True, "yielding-contact guard: once the gain cross-check has "
                                "measured a flagged finger's cells in the contact, credit back "
                                "what its flag charged at the servo's worst case beyond the "
                                "measured ratio times the contact's estimated work (keeps the "

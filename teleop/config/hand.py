@@ -58,6 +58,10 @@ class SimHandConfig:
                                 "nominal calibration (a mis-calibrated sensor: 0.333 reads 3x "
                                 "low); multiplies the pressure readings only, not the contact "
                                 "physics", lo=0.0, hi=100.0)
+    distal_tactile_gain: float = param(1.0, "further gain of the simulated distal pad's 4 "
+                                       "cells alone (on top of tactile_gain: 0.333 makes the "
+                                       "distal pad read 3x low while the proximal one reads "
+                                       "true); readings only", lo=0.0, hi=100.0)
     object: ObjectConfig = section(ObjectConfig, "the grasped object")
 
 

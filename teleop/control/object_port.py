@@ -67,7 +67,7 @@ class TactileModel:
     yield_window_m: float = 0.001
     yield_stiffness_ratio: float = 0.2
     yield_set_check: bool = True
-    yield_credit: bool = False
+    yield_credit: bool = True
     stall_window_rad: float = 0.1
     stall_ratio: float = 0.3
     free_curl_rad: float = 0.45

@@ -17,10 +17,9 @@ import sys
 
 import numpy as np
 
-from services.lockstep import run_lockstep
-from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.analysis.sweep_objects import with_object
 from teleop.config import load_config
+from tests.services.lockstep_grasps import run_grasps
 
 
 def main(argv: list[str]) -> None:
@@ -31,9 +30,7 @@ def main(argv: list[str]) -> None:
             cfg = with_object(load_config(None, [
                 f"master.virtual.style={style}", f"links.master_controller.delay_s={delay}",
                 f"links.controller_hand.delay_s={delay}", *extra]), obj)
-            r = run_lockstep(cfg, secs, seed=1)
-            g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                                    r.distal_rad, r.displayed_force_n, cfg)
+            r, g = run_grasps(cfg, secs)
             peaks = [int(s.peak_pressure) for s in g.grasps]
             closures = [round(s.closure_rad, 3) for s in g.grasps]
             felt = min(s.felt_ratio for s in g.grasps)

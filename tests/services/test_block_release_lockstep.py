@@ -10,17 +10,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from services.lockstep import run_lockstep
-from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.analysis.sweep_objects import with_object
 from teleop.config import load_config
+from tests.services.lockstep_grasps import run_grasps
 
 
 def test_the_hard_operator_grasps_the_block_again_and_again() -> None:
     cfg = with_object(load_config(None, ["master.virtual.style=hard"]), "block")
-    r = run_lockstep(cfg, 15.0, seed=1)
-    series = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                                 r.distal_rad, r.displayed_force_n, cfg)
+    r, series = run_grasps(cfg, 15.0)
     grasps = series.grasps
     assert len(grasps) >= 3
     peak = r.pressure.max(axis=1)

@@ -14,9 +14,9 @@ import sys
 import pytest
 
 from services.lockstep import run_lockstep
-from teleop.analysis.sweep_endurance import grasps_from_columns
 from teleop.config import load_config
 from teleop.control import two_layer_hand
+from tests.services.lockstep_grasps import grasps_of
 
 ORIGINAL_HAND_CAP = two_layer_hand.hand_touch_cap
 SLOW_LINKS = ("links.master_controller.delay_s=1.0", "links.controller_hand.delay_s=1.0")
@@ -45,9 +45,7 @@ def peaks(seconds: float = 15.0, links: tuple[str, ...] = SLOW_LINKS,
         r = run_lockstep(cfg, seconds, seed=1)
     finally:
         two_layer_hand.hand_touch_cap = original
-    g = grasps_from_columns(r.t_s, r.trigger_position_m, r.pressure, r.proximal_rad,
-                            r.distal_rad, r.displayed_force_n, cfg)
-    return [s.peak_pressure for s in g.grasps]
+    return [s.peak_pressure for s in grasps_of(r, cfg).grasps]
 
 
 @pytest.fixture(scope="module")

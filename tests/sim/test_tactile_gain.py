@@ -1,5 +1,6 @@
 """``hand.sim.tactile_gain``: mis-calibrated tactile cells scale the pressure readings, once,
-in both engines, and never the physics (a sensor reading low does not soften the object)."""
+in both engines, and never the physics (a sensor reading low does not soften the object);
+``hand.sim.distal_tactile_gain`` the distal pad's four cells alone."""
 
 from __future__ import annotations
 
@@ -10,9 +11,9 @@ from teleop.config import load_config
 from teleop.messages import HandCommand, HandMode, Header
 
 
-def _grasp(engine: str, gain: float) -> SimHand:
+def _grasp(engine: str, gain: float, *overrides: str) -> SimHand:
     cfg = load_config(None, [f"hand.sim.engine={engine}", f"hand.sim.tactile_gain={gain}",
-                             "hand.sim.noise=false"])
+                             "hand.sim.noise=false", *overrides])
     hand = SimHand(cfg.hand, seed=0)
     hand.start()
     hand.apply(HandCommand(Header(1, 0.0, 0.0), (1.5, 1.4, 1.3), 0.3, HandMode.POSITION,
@@ -32,3 +33,16 @@ def test_cells_read_a_third_of_the_nominal_and_the_physics_is_unchanged(engine: 
         for a, b in zip(ft.pressure, fl.pressure, strict=True):
             assert b == pytest.approx(0.333 * a, rel=1e-12, abs=1e-12)
 
+
+
+def test_the_distal_gain_scales_the_distal_pads_readings_alone() -> None:
+    true = _grasp("compiled", 1.0)
+    low = _grasp("compiled", 1.0, "hand.sim.distal_tactile_gain=0.25")
+    assert true.state == low.state
+    t_read, l_read = true.read(2.025), low.read(2.025)
+    n = len(true.params.finger.proximal_sensor_x_m)
+    for ft, fl in zip(t_read.fingers, l_read.fingers, strict=True):
+        assert max(ft.pressure[n:]) > 50.0  # the distal pad is loaded
+        assert fl.pressure[:n] == ft.pressure[:n]
+        for a, b in zip(ft.pressure[n:], fl.pressure[n:], strict=True):
+            assert b == pytest.approx(0.25 * a, rel=1e-12, abs=1e-12)

@@ -202,7 +202,7 @@ def test_a_credit_the_contact_outgrows_is_charged_back() -> None:
     assert later == pytest.approx((0.5, 0.0, 0.0)) and delta == pytest.approx(0.5 - 3.8)
 
 
-def _credit_all(worst_j: tuple[float, ...], credited_j: tuple[float, ...],
+def credit_all(worst_j: tuple[float, ...], credited_j: tuple[float, ...],
                 gains: tuple[GainTrack, ...]) -> tuple[tuple[float, ...], float]:
     out = tuple(w if g.contact_ratio > 0 else 0.0 for w, g in zip(worst_j, gains, strict=False))
     return out, sum(out) - sum(credited_j)
@@ -221,7 +221,7 @@ CREDIT_CHECKS: dict[str, Callable[[], None]] = {
 }
 
 
-@pytest.mark.parametrize("mutant", [_credit_all, _never_charged_back],
+@pytest.mark.parametrize("mutant", [credit_all, _never_charged_back],
                          ids=["everything credited", "never charged back"])
 def test_a_broken_credit_fails_a_check(mutant: Callable[..., object],
                                        monkeypatch: pytest.MonkeyPatch) -> None:
