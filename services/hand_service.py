@@ -29,6 +29,7 @@ from dataclasses import replace
 from typing import Any
 
 from services.samples import HandSample
+from services.starve_alarm import QUIET, starve_message, starve_step
 from services.suites import get_suite
 from services.watchdog import WatchdogState, hand_command_watchdog, watchdog_step
 from teleop.config import TeleopConfig
@@ -105,6 +106,8 @@ class HandService:
         self.dropped = 0
         self.limit_count = 0
         self._was_limited = False
+        self.starve = QUIET  # the "hand starved" alarm (services.starve_alarm)
+        self._starved_after_s = cfg.safety.starved_alarm_s
         self._model_fallbacks = 0
         self._yielding = 0
         self._unseen = 0
@@ -255,6 +258,9 @@ class HandService:
                 self.events.append("passivity layer limiting the set-points")
             self.limit_count += 1
         self._was_limited = out.limited
+        self.starve, starved = starve_step(self.starve, out.limited, t_s, self._starved_after_s)
+        if starved:
+            self.events.append(starve_message(t_s - self.starve.since_s))
         led = self.ledger = out.ledger
         f = reading.fingers
         return HandSample(

@@ -26,9 +26,10 @@ from teleop.recording import RecordingWriter
 from teleop.transport.safe_decoder import RejectCounts
 
 #: words that make an event an alarm: a contact the tactile cells are not trusted on (raised
-#: once per contact), or cells found reading low (once: latched); printed by a live service as
-#: well as logged
-ALARM_WORDS = ("yielding", "unseen contact", "cells read low")
+#: once per contact), cells found reading low (once: latched), or the hand's tank holding its
+#: set-points back through a squeeze (once per spell); printed by a live service as well as
+#: logged
+ALARM_WORDS = ("yielding", "unseen contact", "cells read low", "hand starved")
 
 
 def is_alarm(text: str) -> bool:

@@ -26,6 +26,10 @@ class SafetyConfig:
                                  choices=("hold", "open"))
     force_ramp_s: float = param(0.2, "time the master force takes to ramp to zero", unit="s",
                                 lo=0.0, hi=10.0)
+    starved_alarm_s: float = param(1.5, "the hand's tank holding its set-points back this long "
+                                   "in one spell raises the 'hand starved' alarm (a healthy "
+                                   "grasp: ~1 s at most, the first one live; a starved hand: "
+                                   "every squeeze, 2-3.4 s; 0: off)", unit="s", lo=0.0, hi=60.0)
     energy_jump_max_j: float = param(10.0, "largest accepted increase of a peer's cumulative "
                                      "energy total in one message", unit="J", lo=0.0, hi=1e6)
     seq_jump_max: int = param(10_000, "largest accepted advance of a peer's sequence number over "

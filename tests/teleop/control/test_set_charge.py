@@ -21,6 +21,7 @@ from teleop.control.gain_check import UNCHECKED, GainTrack, set_charge_j, step_g
 from teleop.control.two_layer_hand import worst_case_credit_j
 from teleop.control.yield_guard import SET_FOUND
 from teleop.messages import FingerState
+from tests.mutants import fails
 from tests.teleop.control.test_gain_check import DT_S, MODEL, hold, load_for, pressing_sample
 
 M = MODEL.force_margin
@@ -136,21 +137,13 @@ CHECKS: dict[str, Callable[[], None]] = {
 }
 
 
-def _fails(check: Callable[[], None]) -> bool:
-    try:
-        check()
-    except AssertionError:
-        return True
-    return False
-
-
 @pytest.mark.parametrize("mutant", [_margin_flipped, _never_worst_case],
                          ids=["margin flipped", "never the worst case"])
 def test_a_broken_charge_fails_a_check(mutant: Callable[..., float | None],
                                        monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(gain_check, "set_charge_j", mutant)
     monkeypatch.setattr(sys.modules[__name__], "set_charge_j", mutant)
-    assert any(_fails(c) for c in CHECKS.values())
+    assert any(fails(c) for c in CHECKS.values())
 
 
 def test_contact_figures_kept_past_the_release_fail_a_check(
@@ -167,11 +160,11 @@ def test_contact_figures_kept_past_the_release_fail_a_check(
         return t, r
 
     monkeypatch.setattr(sys.modules[__name__], "step_gain", sticky)
-    assert _fails(test_the_next_contact_earns_its_own_ratio)
+    assert fails(test_the_next_contact_earns_its_own_ratio)
 
 
 def test_the_checks_pass_as_built() -> None:
-    assert not any(_fails(c) for c in CHECKS.values())
+    assert not any(fails(c) for c in CHECKS.values())
 
 
 # ------------------------------------------- the worst case credited back (yield_credit)
@@ -226,8 +219,8 @@ CREDIT_CHECKS: dict[str, Callable[[], None]] = {
 def test_a_broken_credit_fails_a_check(mutant: Callable[..., object],
                                        monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(sys.modules[__name__], "worst_case_credit_j", mutant)
-    assert any(_fails(c) for c in CREDIT_CHECKS.values())
+    assert any(fails(c) for c in CREDIT_CHECKS.values())
 
 
 def test_the_credit_checks_pass_as_built() -> None:
-    assert not any(_fails(c) for c in CREDIT_CHECKS.values())
+    assert not any(fails(c) for c in CREDIT_CHECKS.values())
