@@ -40,11 +40,9 @@ from teleop.control.yield_guard import (
     NO_CONTACT,
     SET_FOUND,
     YieldTrack,
-    flag_recharge_j,
     flag_recharges_j,
     pad_advance_m,
     step_yield,
-    yield_charge_j,
     yield_charges_j,
 )
 from teleop.frozen import fast_init
@@ -175,18 +173,15 @@ def worst_case_credit_j(worst_j: Triple, credited_j: Triple, gains: tuple[GainTr
     return tuple(out), delta  # type: ignore[return-value]
 
 
-def credit_fingers(p: ControlParams, s: HandPortState, x: Triple, blind: tuple[bool, ...],
-                   yields: tuple[YieldTrack, ...], gains: tuple[GainTrack, ...],
-                   crush_share: float) -> tuple[Triple, Triple, float]:
+def credit_fingers(s: HandPortState, moved: Triple, flags: Triple,
+                   gains: tuple[GainTrack, ...], crush_share: float
+                   ) -> tuple[Triple, Triple, float]:
     """``yield_credit``'s bookkeeping for one sample: each finger's worst-case charges over
-    its contact (the flagged samples' motion, ``crush_share`` of it as the one-sample cap
-    let through, and the flag's re-charge; a contact whose gain track has ended starts
-    again at 0) and the credit (:func:`worst_case_credit_j`).  Returns ``(worst, credited,
-    this sample's credit)``."""
-    tmax = p.servo_torque_max_nm
-    moved = (yield_charges_j(x, s.x_prev, blind, tmax) if s.x_prev is not None
-             else (0.0, 0.0, 0.0))
-    flags = flag_recharges_j(s.yields, yields, tmax)
+    its contact (``moved``, the flagged samples' motion at the servo's torque, ``crush_share``
+    of it as the one-sample cap let through, and ``flags``, the flag's re-charge: the
+    per-finger charges :func:`step_hand_object` made; a contact whose gain track has ended
+    starts again at 0) and the credit (:func:`worst_case_credit_j`).  Returns ``(worst,
+    credited, this sample's credit)``."""
     ended = [g.contact_into_j == 0.0 and g.contact_ratio == 0.0 for g in gains]
     worst = tuple(0.0 if e else w + m * crush_share + f
                   for w, m, f, e in zip(s.worst_j, moved, flags, ended, strict=False))
@@ -262,15 +257,17 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     charge = margin_charge_j(p.tactile, net) - paid
     # a yielding finger's cells are not trusted, a stalled one's see nothing: its inward
     # motion is charged at the servo's torque (teleop.control.yield_guard, .stall_guard)
-    crush = (yield_charge_j(x, s.x_prev, blind, p.servo_torque_max_nm)
-             if s.x_prev is not None else 0.0)
+    tmax = p.servo_torque_max_nm
+    moved: Triple = (yield_charges_j(x, s.x_prev, blind, tmax)  # type: ignore[assignment]
+                     if s.x_prev is not None else (0.0, 0.0, 0.0))
+    crush = sum(moved)
     # a finger just flagged: its advance before the flag, which the cells were trusted for
     # (yield) or saw nothing of (stall), at the servo's torque too (outside the one-sample
     # cap: past samples' work)
     # a set found when a measured finger's contact ended: the part of the contact's work
     # its measured gain leaves unpaid (outside the cap too)
-    flagged = (flag_recharge_j(s.yields, yields, p.servo_torque_max_nm)
-               + stall_recharge_j(s.stalls, stalls, p.servo_torque_max_nm) + set_j)
+    flags: Triple = flag_recharges_j(s.yields, yields, tmax)  # type: ignore[assignment]
+    flagged = sum(flags) + stall_recharge_j(s.stalls, stalls, tmax) + set_j
     # one sample cannot deliver more than the fingers held at its start (servo potential,
     # tendon) plus their kinetic energy: a slip off the object, where the sampled estimate
     # sees a large force over a long move, is charged no more than that
@@ -289,13 +286,12 @@ def step_hand_object(s: HandPortState, p: ControlParams, fingers: tuple[FingerSt
     worst, credited = s.worst_j, s.credited_j
     if p.tactile.yield_credit:
         share = crush / crush_all if crush_all > 0.0 else 0.0
-        worst, credited, credit = credit_fingers(p, s, x, blind, yields, gains, share)
+        worst, credited, credit = credit_fingers(s, moved, flags, gains, share)
         charge -= credit
     out_j, in_j = max(charge, 0.0), max(-charge, 0.0)
     rx, inc = receive_total(s.rx, command.header.energy_total_j if command else None)
     tank, diss = cap_tank(led.tank_j - charge + inc, p.max_j)
-    k, tmax, kt = p.servo_stiffness_nm_per_rad, p.servo_torque_max_nm, \
-        p.tendon_stiffness_nm_per_rad
+    k, kt = p.servo_stiffness_nm_per_rad, p.tendon_stiffness_nm_per_rad
     want = slew(desired_setpoints(command, y_prev), y_prev, p.servo_max_speed_rad_s * dt_s, x)
     y, limited = reserve_project(want, x, tank - p.min_j, k, tmax, kt)
     held = hand_reservation_j(y, x, k, tmax, kt)

@@ -6,7 +6,7 @@ without it, on the crushable cylinder.
 Lockstep, seed 1, the grid's ``crushable-cylinder``: the default (relaxed) operator for 60 s
 with true cells, the hard operator for 120 s with true cells, and the default operator for
 60 s with cells reading a third (``hand.sim.tactile_gain=0.333``); each run once as built and
-once with :func:`teleop.control.yield_guard.flag_recharge_j` replaced by zero on the hand side
+once with :func:`teleop.control.yield_guard.flag_recharges_j` replaced by zeros on the hand side
 (the guard as before the re-charge).  Per run: the grasps' peak pressures (``teleop
 grasps``' rule, :func:`teleop.analysis.sweep_endurance.grasps_from_columns`), their range, and
 the hand's tank at the end.  docs/controllers.md quotes the figures.
@@ -35,19 +35,19 @@ RUNS = (("default operator, true cells", 60.0, ()),
 
 
 def main() -> int:
-    built = two_layer_hand.flag_recharge_j
+    built = two_layer_hand.flag_recharges_j
     for label, seconds, overrides in RUNS:
         cfg = with_object(load_config(None, [*overrides, CREDIT_OFF]), "crushable-cylinder")
         for recharge in (True, False):
-            two_layer_hand.flag_recharge_j = (  # type: ignore[assignment]
-                built if recharge else (lambda *_a: 0.0))
+            two_layer_hand.flag_recharges_j = (  # type: ignore[assignment]
+                built if recharge else (lambda *_a: (0.0, 0.0, 0.0)))
             r, g = run_grasps(cfg, seconds)
             peaks = [round(s.peak_pressure) for s in g.grasps]
             span = f"{min(peaks)}-{max(peaks)}" if peaks else "-"
             print(f"{label}, {seconds:.0f} s, re-charge {'on ' if recharge else 'off'}: "
                   f"{len(peaks)} grasps, peak pressure {span} ({peaks}), hand tank at the "
                   f"end {r.hand_tank_j[-1]:.1f} J", flush=True)
-    two_layer_hand.flag_recharge_j = built  # type: ignore[assignment]
+    two_layer_hand.flag_recharges_j = built  # type: ignore[assignment]
     return 0
 
 

@@ -111,8 +111,8 @@ def test_without_the_guard_a_sensor_reading_low_breaks_the_bound(gain: float) ->
 def test_the_guard_without_its_charge_breaks_the_bound(monkeypatch: pytest.MonkeyPatch) -> None:
     """Flagging alone is not enough: the yielding finger's advance must be paid for (both
     parts of the charge dropped: the advance after the flag and the one before it)."""
-    patch_sides(monkeypatch, "yield_charge_j", lambda *a: 0.0)
-    patch_sides(monkeypatch, "flag_recharge_j", lambda *a: 0.0)
+    patch_sides(monkeypatch, "yield_charges_j", lambda *a: (0.0, 0.0, 0.0))
+    patch_sides(monkeypatch, "flag_recharges_j", lambda *a: (0.0, 0.0, 0.0))
     r = run_loop(SUITE, P, replace(PUSH, sensor_gain_factor=1.0 / 3.0))
     assert r.yielding_hand == 3
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
@@ -152,7 +152,7 @@ def test_without_the_flag_recharge_the_firmer_operator_breaks_the_bound(
     """The mutant kept as a test: the advance before the flag left at the cells' charge,
     the firmer operator's push at a third breaks the bound (by 2 mJ, as the operator
     opens)."""
-    patch_sides(monkeypatch, "flag_recharge_j", lambda *a: 0.0)
+    patch_sides(monkeypatch, "flag_recharges_j", lambda *a: (0.0, 0.0, 0.0))
     r = run_loop(SUITE, P, replace(FIRM_PUSH, sensor_gain_factor=1.0 / 3.0))
     assert r.yielding_hand == 3
     assert audit_failure(r, initial_tank_j(SUITE, P)) != ""
