@@ -260,7 +260,9 @@ class HandService:
         self._was_limited = out.limited
         self.starve, starved = starve_step(self.starve, out.limited, t_s, self._starved_after_s)
         if starved:
-            self.events.append(starve_message(t_s - self.starve.since_s))
+            cm = self.params.contact_model
+            self.events.append(starve_message(t_s - self.starve.since_s,
+                                              cm is None or cm.follow_held_back))
         led = self.ledger = out.ledger
         f = reading.fingers
         return HandSample(

@@ -42,11 +42,14 @@ def starve_step(prev: StarveAlarm, limited: bool, t_s: float,
     return StarveAlarm(since, True, prev.spells + 1), True
 
 
-def starve_message(held_s: float) -> str:
-    """The alarm's text (an alarm by :data:`services.telemetry.ALARM_WORDS`)."""
+def starve_message(held_s: float, model_follows: bool = True) -> str:
+    """The alarm's text (an alarm by :data:`services.telemetry.ALARM_WORDS`);
+    ``model_follows``: the rendered contact model follows the held-back hand
+    (``controller.contact_model.follow_held_back``)."""
+    felt = ("the operator feels what they press" if model_follows
+            else "the operator may still feel the contact model's full force")
     return (f"hand starved: its tank has held the set-points back for {held_s:.1f} s; the "
-            "fingers squeeze less than commanded while the operator may still feel the "
-            "contact model's full force")
+            f"fingers squeeze less than commanded ({felt})")
 
 
 __all__ = ["QUIET", "StarveAlarm", "starve_message", "starve_step"]

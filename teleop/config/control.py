@@ -267,6 +267,11 @@ class ContactModelConfig:
                                  "above it the estimate counts as diverged", lo=0.0, hi=1e6)
     force_rate_n_per_s: float = param(80.0, "a model update changes the rendered force at most "
                                       "this fast", unit="N/s", lo=0.0, hi=1e5)
+    force_drop_rate_n_per_s: float = param(320.0, "a model update lowers the rendered force "
+                                           "at most this fast (the trigger's 8 N in one 25 ms "
+                                           "hand sample: a hand that stops pressing is felt to "
+                                           "let go, not phased out over 0.1 s)", unit="N/s",
+                                           lo=0.0, hi=1e5)
     touch_force_n: float = param(2.0, "trigger force at which a finger's new touch is held "
                                  "until the operator can have felt it: a light touch, a "
                                  "quarter of the trigger's largest force (the touch caps of "
@@ -277,6 +282,11 @@ class ContactModelConfig:
                                 "to a felt force takes 0.15-0.3 s: the trigger then shows the "
                                 "operator's answer, not his blind squeeze)", unit="s",
                                 lo=0.0, hi=10.0)
+    follow_held_back: bool = param(True, "the model's contact angle goes on the wire moved "
+                                   "out by how far the hand's tank holds the set-points back, "
+                                   "so the operator feels what the hand presses (off: the "
+                                   "object's model as estimated; a starved hand is then felt "
+                                   "as a firm grasp)")
     damping_periods: float = param(1.0, "rendered contact damping, in master periods times the "
                                    "rendered stiffness (Colgate: more than half a period keeps a "
                                    "sampled spring passive)", lo=0.0, hi=100.0)

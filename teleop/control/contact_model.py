@@ -137,10 +137,21 @@ def step_models(ms: tuple[FingerModel, ...] | None, c: ContactModelConfig,
                  for m, yi, xi, pi in zip(prev, y, x, pressures, strict=True))
 
 
-def model_wire(ms: tuple[FingerModel, ...] | None) -> tuple[float, ...]:
-    """``(contact_rad, stiffness)`` per finger, flattened (stiffness 0: no model)."""
+def model_wire(ms: tuple[FingerModel, ...] | None,
+               held_back_rad: tuple[float, ...] = ()) -> tuple[float, ...]:
+    """``(contact_rad, stiffness)`` per finger, flattened (stiffness 0: no model).
+
+    ``held_back_rad``: per finger, how far the hand's tank holds its set-point back from the
+    one it would apply (never negative); a valid model's contact angle goes on the wire moved
+    out by it.  The master renders ``k (s - c)`` at the set-point ``s`` its trigger asks
+    for while the hand presses ``k (y - c)`` at the applied ``y``; moved by ``s - y``, the
+    model renders what the hand presses, so a starved hand is not felt as a firm grasp."""
     out: list[float] = []
-    for m in (ms or ()):
-        out += [m.contact_rad, m.stiffness] if m.valid else [0.0, 0.0]
+    for i, m in enumerate(ms or ()):
+        if not m.valid:
+            out += [0.0, 0.0]
+            continue
+        gap = held_back_rad[i] if i < len(held_back_rad) else 0.0
+        out += [m.contact_rad + gap if gap > 0.0 else m.contact_rad, m.stiffness]
     out += [0.0] * (6 - len(out))
     return tuple(out[:6])

@@ -20,9 +20,10 @@ linear, ``map_exponent = 1``, and the controller sends no model otherwise).  The
 ``E(q)`` before it sends any quantum on, so it can always pay the release back.
 
 Parameter updates are phased in: the rendered parameters move towards the received ones by
-the fraction ``alpha = a0 * 2^-j`` (``a0 = min(1, force_rate_n_per_s * dt / |F_new(q) -
-F(q)|)``, the smallest ``j <= 6``, else not at all this sample) for which the rendered force
-at the present ``q`` changes by at most ``force_rate_n_per_s * dt`` and
+the fraction ``alpha = a0 * 2^-j`` (``a0 = min(1, rate * dt / |F_new(q) - F(q)|)``, the
+smallest ``j <= 6``, else not at all this sample) for which the rendered force at the present
+``q`` changes by at most ``rate * dt`` (``rate``: ``force_rate_n_per_s`` for an update that
+raises the force, ``force_drop_rate_n_per_s`` for one that lowers it) and
 the stored energy stays within what the tank holds above its minimum (or does not rise): an
 update that raises the stored energy is paid from the master tank, as the tank allows.  A
 finger whose rendered stiffness is 0 takes the new contact angle at once (no force change).
@@ -204,9 +205,11 @@ def _mix(r: RenderState, c_t: Triple, k_t: Triple, a: float) -> RenderState:
 
 def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m: float,
                 budget_j: float, rate_n_per_s: float, dt_s: float,
-                cut: bool = False) -> RenderState:
+                cut: bool = False, drop_rate_n_per_s: float | None = None) -> RenderState:
     """Move the rendered model towards ``model`` (wire form, see module docstring); ``cut``:
-    the link is cut (a watchdog zeroed the command), a withdrawn model goes at once."""
+    the link is cut (a watchdog zeroed the command), a withdrawn model goes at once;
+    ``drop_rate_n_per_s``: the rate limit of an update that lowers the force (None: the
+    same as ``rate_n_per_s``)."""
     # (the per-finger expressions written out for the three fingers: same operations)
     k_t = (max(model[1], 0.0), max(model[3], 0.0), max(model[5], 0.0))
     k0, k1, k2 = k_t
@@ -228,12 +231,15 @@ def step_render(r: RenderState, p: ControlParams, model: tuple[float, ...], q_m:
     r0 = RenderState(contact_rad=c_r, stiffness_n_per_rad=k_r)
     f0, e0 = model_force_n(r0, p, q_m), model_energy_j(r0, p, q_m)
     full = _mix(r0, c_t, k_t, 1.0)  # type: ignore[arg-type]
-    jump = abs(model_force_n(full, p, q_m) - f0)
-    a0 = min(1.0, rate_n_per_s * dt_s / jump) if jump > 0.0 else 1.0
+    up = rate_n_per_s * dt_s  # the most a sample may raise the force, and lower it
+    down = up if drop_rate_n_per_s is None else drop_rate_n_per_s * dt_s
+    jump = model_force_n(full, p, q_m) - f0
+    a0 = min(1.0, (down if jump < 0.0 else up) / abs(jump)) if jump != 0.0 else 1.0
     new = r0
     for a in _ALPHAS:
         cand = _mix(r0, c_t, k_t, a * a0)  # type: ignore[arg-type]
-        if not abs(model_force_n(cand, p, q_m) - f0) <= rate_n_per_s * dt_s * (1.0 + 1e-9):
+        change = model_force_n(cand, p, q_m) - f0
+        if not -down * (1.0 + 1e-9) <= change <= up * (1.0 + 1e-9):
             continue  # (the energy only for a candidate the rate limit lets through)
         e = model_energy_j(cand, p, q_m)
         if e <= budget_j or e <= e0:

@@ -75,6 +75,9 @@ class HandPortState:
     #: per finger: hand time its contact model became valid (nan: none), for the hand's
     #: touch cap (:func:`teleop.control.touch_cap.hand_touch_cap`)
     touch_since: Triple = NO_TOUCH
+    #: the set-points the layer would apply if its tank never held them back
+    #: (:func:`shadow_setpoints`; None before the first sample)
+    shadow_rad: Triple | None = None
     #: per finger: what its contact has paid at the servo's worst case (yield flag re-charge
     #: and the flagged samples' motion), and what of it was credited back once the gain
     #: cross-check measured the cells in the contact (:func:`worst_case_credit_j`)
@@ -126,6 +129,18 @@ def slew(want: Triple, prev: Triple, max_step: float, x: Triple | None = None) -
                      for a, b in zip(want, prev, strict=True))
     return tuple(b + min(max(a - b, -max(max_step, b - m)), max_step)  # type: ignore[return-value]
                  for a, b, m in zip(want, prev, x, strict=True))
+
+
+def shadow_setpoints(s: HandPortState, p: ControlParams, command: HandCommand | None,
+                     x: Triple, dt_s: float) -> Triple:
+    """The set-points the layer would apply if its tank never held them back: the command
+    slewed from the previous shadow exactly as the layer slews its own (equal to the applied
+    set-points, float for float, while the tank has never limited them)."""
+    prev = (s.shadow_rad if s.shadow_rad is not None
+            else s.setpoint_prev if s.setpoint_prev is not None else x)
+    step = p.servo_max_speed_rad_s * dt_s
+    return slew(desired_setpoints(command, prev), prev, step,
+                x if p.hand_port == "object" else None)
 
 
 def finger_contacts(fingers: tuple[FingerState, ...]) -> tuple[bool, bool, bool]:
@@ -331,8 +346,12 @@ def step_hand(s: HandPortState, p: ControlParams, fingers: tuple[FingerState, ..
     assert ns.x_prev is not None  # both layers keep this sample's measured motor angles
     models = step_models(s.models, p.contact_model, s.setpoint_prev, ns.x_prev, peaks, dt_s)
     since = touch_since(s.touch_since, models, t_s)
-    return (replace(ns, models=models, touch_since=since),
-            replace(out, contact_model=model_wire(models),
+    shadow, gap = None, ()
+    if p.contact_model.follow_held_back:  # the model moved out by what the tank holds back
+        shadow = shadow_setpoints(s, p, command, ns.x_prev, dt_s)
+        gap = tuple(a - b for a, b in zip(shadow, out.setpoint_rad, strict=True))
+    return (replace(ns, models=models, touch_since=since, shadow_rad=shadow),
+            replace(out, contact_model=model_wire(models, gap),
                     model_fallbacks=sum(m.fallbacks for m in models)))
 
 

@@ -107,7 +107,8 @@ def render_model(r: RenderState, p: ControlParams, command: ForceCommand | None,
         return r, 0.0, 0.0, 0.0
     model = command.model if command is not None else NO_MODEL
     cut = command is None or command.force_n == 0.0  # a watchdog zeroes the whole command
-    r = step_render(r, p, model, q, tank_j - p.min_j, cm.force_rate_n_per_s, dt_s, cut)
+    r = step_render(r, p, model, q, tank_j - p.min_j, cm.force_rate_n_per_s, dt_s, cut,
+                    cm.force_drop_rate_n_per_s)
     f = model_force_n(r, p, q)
     b = damping_n_s_per_m(r, p, cm.damping_periods, dt_s) if f > 0.0 else 0.0
     return r, f, b * v, model_energy_j(r, p, q)

@@ -139,7 +139,8 @@ def test_a_withdrawn_model_ramps_out_unless_the_link_is_cut() -> None:
 
 def test_a_dropped_estimate_hands_over_to_the_delayed_force_without_a_step() -> None:
     """The hand drops a diverged model while the delayed measured force says 3 N: the
-    displayed force moves at most the rate limit per sample and ends at the delayed force."""
+    displayed force falls at most the drop rate limit per sample (never below the delayed
+    force) and ends at the delayed force."""
     p = replace(P, tlc_gain=0.0)
     s = two_layer.init_master(p)
     q = 0.0045
@@ -152,8 +153,10 @@ def test_a_dropped_estimate_hands_over_to_the_delayed_force_without_a_step() -> 
     for _ in range(600):
         s, out = two_layer.step_master(s, p, q, command((0.0,) * 6, force_n=3.0), DT)
         forces.append(out.force_n)
-    rate = p.contact_model.force_rate_n_per_s
-    assert max(abs(b - a) for a, b in zip(forces, forces[1:], strict=False)) <= rate * DT + 1e-9
+    drop = p.contact_model.force_drop_rate_n_per_s
+    steps = [b - a for a, b in zip(forces, forces[1:], strict=False)]
+    assert max(steps) <= 1e-9 and min(steps) >= -drop * DT - 1e-9
+    assert min(forces) >= 3.0 - 0.05
     assert forces[-1] == pytest.approx(3.0, abs=0.05)
     # the same command zeroed by a watchdog: the force goes at once
     _, cut = two_layer.step_master(full, p, q, command((0.0,) * 6, force_n=0.0), DT)
@@ -228,3 +231,37 @@ def test_the_written_out_default_energy_is_the_general_one_bit_for_bit() -> None
         checked += want > 0.0
         assert struct.pack("<d", _model_energy_j(r, P, q)) == struct.pack("<d", want)
     assert checked > 500  # most draws store energy: the sums are exercised
+
+
+@pytest.mark.parametrize("raise_it", [True, False])
+def test_a_model_update_raises_the_force_at_the_rise_rate_and_lowers_it_at_the_drop_rate(
+        raise_it: bool) -> None:
+    """A rendered block at 4.5 mm of trigger (5.6 N), then the model moved 0.05 rad in (more
+    force) or out (less): the rendered force moves by the rise limit per sample going up and
+    by the (faster) drop limit going down, and reaches the new model's force."""
+    cm = P.contact_model
+    assert cm.force_drop_rate_n_per_s > cm.force_rate_n_per_s
+    q, budget = 0.0045, 1e3
+    r = RenderState()
+    for _ in range(1000):  # the model phased in in full
+        r = step_render(r, P, MODEL, q, budget, cm.force_rate_n_per_s, DT, False,
+                        cm.force_drop_rate_n_per_s)
+    f0 = model_force_n(r, P, q)
+    assert r.stiffness_n_per_rad == (40.0,) * 3 and f0 == pytest.approx(5.6)
+    c = 0.35 if raise_it else 0.45  # 7.6 N or 3.6 N (under the 8 N clip): linear in c
+    moved = (c, 40.0) * 3
+    forces = [f0]
+    for _ in range(400):
+        r = step_render(r, P, moved, q, budget, cm.force_rate_n_per_s, DT, False,
+                        cm.force_drop_rate_n_per_s)
+        forces.append(model_force_n(r, P, q))
+    steps = [b - a for a, b in zip(forces, forces[1:], strict=False)]
+    target = model_force_n(RenderState(contact_rad=(c,) * 3, stiffness_n_per_rad=(40.0,) * 3),
+                           P, q)
+    assert forces[-1] == pytest.approx(target, abs=1e-6)
+    if raise_it:
+        assert min(steps) >= -1e-12
+        assert max(steps) == pytest.approx(cm.force_rate_n_per_s * DT, rel=1e-6)
+    else:
+        assert max(steps) <= 1e-12
+        assert min(steps) == pytest.approx(-cm.force_drop_rate_n_per_s * DT, rel=1e-6)
