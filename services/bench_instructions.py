@@ -25,6 +25,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 from teleop.errors import UserInputError
@@ -32,17 +33,20 @@ from teleop.errors import UserInputError
 #: the C function callgrind collects in: the script runs the measured lockstep inside it
 TOGGLE = "functools_reduce"
 
-#: argv: engine, simulated seconds
+#: argv: engine, then the simulated seconds of each measured run (one warm-up run as long as
+#: the longest first; each measured run inside its own ``functools.reduce``)
 _SCRIPT = """
 import functools, sys
 from services.lockstep import run_lockstep
 from teleop.config import load_config
 cfg = load_config(None, ["hand.sim.engine=" + sys.argv[1]])
-run_lockstep(cfg, float(sys.argv[2]), seed=1)
-functools.reduce(lambda a, b: run_lockstep(cfg, float(sys.argv[2]), seed=1), [0, 0])
+runs = [float(a) for a in sys.argv[2:]]
+run_lockstep(cfg, max(runs), seed=1)
+for s in runs:
+    functools.reduce(lambda a, b, s=s: run_lockstep(cfg, s, seed=1), [0, 0])
 """
-
 _COLLECTED = re.compile(r"Collected\s*:\s*(\d+)")
+_TOTALS = re.compile(r"^totals:\s*(\d+)", re.M)
 
 
 def valgrind_path() -> str:
@@ -64,21 +68,38 @@ def collected(log: str) -> int:
 
 def count_instructions(tree: Path, engine: str, sim_s: float) -> int:
     """Instructions of one ``sim_s`` s lockstep run of the source ``tree`` on ``engine``."""
+    return count_instructions_each(tree, engine, (sim_s,))[0]
+
+
+def count_instructions_each(tree: Path, engine: str, sims_s: Sequence[float]) -> list[int]:
+    """Instructions of each of the lockstep runs of ``sims_s`` simulated seconds, one after
+    another in one process under callgrind (one start-up and warm-up for all): callgrind
+    dumps its count on every exit from the measured runs' ``functools.reduce``
+    (``--dump-after``), the ``k``-th dump holding the ``k``-th run's."""
     valgrind = valgrind_path()
     env = {**os.environ, "PYTHONPATH": str(tree)}
     with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "callgrind.out"
         cmd = [valgrind, "--tool=callgrind", f"--toggle-collect={TOGGLE}",
-               f"--callgrind-out-file={Path(tmp) / 'callgrind.out'}", sys.executable, "-c",
-               _SCRIPT, engine, repr(float(sim_s))]
+               f"--dump-after={TOGGLE}", f"--callgrind-out-file={out}", sys.executable, "-c",
+               _SCRIPT, engine, *(repr(float(s)) for s in sims_s)]
         done = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
-    if done.returncode != 0:
-        raise RuntimeError(f"callgrind run in {tree} failed (exit {done.returncode}):\n"
-                           + done.stderr[-2000:])
-    n = collected(done.stderr)
-    if n == 0:
+        if done.returncode != 0:
+            raise RuntimeError(f"callgrind run in {tree} failed (exit {done.returncode}):\n"
+                               + done.stderr[-2000:])
+        counts = [dumped(Path(f"{out}.{k}")) for k in range(1, len(sims_s) + 1)]
+    if collected(done.stderr) == 0 or 0 in counts:
         raise RuntimeError(f"callgrind counted nothing in {TOGGLE}: this Python's library has "
                            "no symbol of that name, so the timed run cannot be isolated")
-    return n
+    return counts
+
+
+def dumped(path: Path) -> int:
+    """The instruction count of one callgrind dump file (its ``totals:`` line)."""
+    m = _TOTALS.search(path.read_text()) if path.is_file() else None
+    if m is None:
+        raise RuntimeError(f"callgrind wrote no count in {path.name}")
+    return int(m.group(1))
 
 
 def instruction_figures(this_tree: Path, reference: Path | None,
