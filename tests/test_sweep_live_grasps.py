@@ -1,4 +1,4 @@
-"""Live endurance check: ``teleop up`` for 90 s (three processes over zenoh on loopback),
+"""Live endurance check: ``teleop up`` for 75 s (three processes over zenoh on loopback),
 then ``teleop grasps DIR`` on its recordings: every grasp of the virtual operator's repeated
 script judged like the lockstep endurance (:func:`teleop.analysis.grasps.curl_grasps`), and no
 energy store empty while the trigger is closed."""
@@ -15,7 +15,7 @@ import pytest
 
 pytestmark = [pytest.mark.network, pytest.mark.slow]
 
-DURATION_S = 90.0
+DURATION_S = 75.0  # 90 s until 2026-11-29 (CI's 20 minutes: 16 grasps, not 20)
 
 
 @pytest.fixture(scope="module")
@@ -30,13 +30,12 @@ def report(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
          "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}", "--set", f"session.name=live{port}"],
         capture_output=True, text=True, timeout=DURATION_S + 90)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    judged = subprocess.run([sys.executable, "-m", "teleop.cli", "grasps", str(rec)],
-                            capture_output=True, text=True, timeout=60)
+    out = rec.parent / "grasps.json"  # one call: the report printed, its JSON written
+    judged = subprocess.run([sys.executable, "-m", "teleop.cli", "grasps", str(rec), "--json",
+                             str(out)], capture_output=True, text=True, timeout=60)
     print(judged.stdout)
     assert judged.returncode == 0, judged.stderr
-    as_json = subprocess.run([sys.executable, "-m", "teleop.cli", "grasps", str(rec), "--json",
-                              "-"], capture_output=True, text=True, timeout=60, check=True)
-    return dict(json.loads(as_json.stdout))
+    return dict(json.loads(out.read_text()))
 
 
 def test_every_grasp_of_the_live_run_is_found(report: dict[str, Any]) -> None:
