@@ -8,7 +8,8 @@ relaxed and the hard operator on the stiff cylinder, the relaxed operator at 0.2
 both links on the stiff cylinder, the block and the crushable cylinder, and two long runs
 (the hard operator on the block for 120 s, the relaxed one on the crushable cylinder for
 360 s).  A spell is a run of hand samples (40 Hz) on which the passivity layer held the
-set-points back (the hand's ``limit_count`` rising), gaps under 30 ms joined.  Per run: the
+set-points back (the hand's ``limit_count`` rising), found as ``teleop grasps`` finds a
+store's empty spells.  Per run: the
 number of spells, the four longest (start s, length s) and when the alarm's own step at the
 configured threshold would first have fired.  docs/controllers.md ("hand starved") quotes the
 figures.
@@ -27,26 +28,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 OBJECTS = ("free-air", "soft-cylinder", "stiff-cylinder", "block", "crushable-cylinder")
 OPERATORS = ("soft", "relaxed", "hard")
 HAND_DT_S = 0.025
-#: limited samples closer than this belong to one spell
-JOIN_S = 0.03
-
-
-def spells_of(t_s: list[float], limited: list[bool]) -> list[tuple[float, float]]:
-    """(start s, length s) of each spell of ``limited`` samples (a sample lasts
-    ``HAND_DT_S``; samples under ``JOIN_S`` apart join), in time order."""
-    out: list[tuple[float, float]] = []
-    start = prev = None
-    for t, lim in zip(t_s, limited, strict=True):
-        if not lim:
-            continue
-        if prev is None or t - prev > JOIN_S:
-            if start is not None:
-                out.append((start, prev - start + HAND_DT_S))  # type: ignore[operator]
-            start = t
-        prev = t
-    if start is not None:
-        out.append((start, prev - start + HAND_DT_S))  # type: ignore[operator]
-    return out
 
 
 def one_run(operator: str, obj: str, gain: float, seconds: float,
@@ -55,6 +36,7 @@ def one_run(operator: str, obj: str, gain: float, seconds: float,
 
     from services.lockstep import run_lockstep
     from services.starve_alarm import QUIET, starve_step
+    from teleop.analysis.recorded_run import _spans
     from teleop.analysis.sweep_objects import with_object
     from teleop.config import load_config
 
@@ -66,7 +48,7 @@ def one_run(operator: str, obj: str, gain: float, seconds: float,
     at = np.searchsorted(t, np.arange(0.0, t[-1] + 1e-9, HAND_DT_S) - 1e-9)
     hand_t = t[at]
     limited = np.diff(count[at], prepend=count[0]) > 0
-    spells = spells_of([float(x) for x in hand_t], [bool(x) for x in limited])
+    spells = _spans(hand_t, limited)  # ``teleop grasps``' stretches, one hand sample each
     alarm, first = QUIET, None
     for tk, lim in zip(hand_t, limited, strict=True):  # the alarm's own step, as configured
         alarm, fire = starve_step(alarm, bool(lim), float(tk), cfg.safety.starved_alarm_s)
