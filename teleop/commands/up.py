@@ -26,6 +26,7 @@ from teleop.commands.common import (
     nonneg_float,
 )
 from teleop.commands.run import add_dashboard_option, add_realtime_option
+from teleop.config import TeleopConfig
 from teleop.errors import UserInputError
 
 
@@ -66,6 +67,24 @@ def resolve_dashboard(arg: str | None, cfg_mode: str, cfg_path: str,
     raise UserInputError(f"--dashboard {text!r}: expected spawn, web, save:PATH or off")
 
 
+def check_listen_endpoints_free(cfg: TeleopConfig) -> None:
+    """UserInputError, before anything starts, if an endpoint a service of this run would
+    listen on is taken (another ``teleop up`` of the same endpoint, typically; see
+    :mod:`teleop.transport.endpoint_check`)."""
+    from teleop.transport.endpoint_check import endpoint_in_use
+
+    z = cfg.zenoh  # what the controller listens on (``zenoh_bus.role_endpoints``, which
+    # imports zenoh: not worth its start-up time here); every role listens on ``listen``
+    named = [(f"zenoh.listen[{i}]", e) for i, e in enumerate(z.listen)]
+    named += [("zenoh.endpoint", z.endpoint)] if z.endpoint else []
+    for key, endpoint in named:
+        if endpoint_in_use(endpoint):
+            raise UserInputError(
+                f"{key} = {endpoint!r}: address in use (another teleop session, or another "
+                "program, listens there); stop it, or give this run its own endpoint, e.g. "
+                "--set zenoh.endpoint=tcp/127.0.0.1:7448")
+
+
 def run(args: argparse.Namespace) -> int:
     """Start, supervise and stop the services."""
     from services.launcher import Launcher
@@ -76,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
         check_output_path(Path(args.record) / "master.csv", "recordings")
     if mode == "save":
         check_output_path(path, "the dashboard recording")
+    check_listen_endpoints_free(cfg)
     passthrough: list[str] = []
     if args.config is not None:
         passthrough += ["--config", str(args.config)]

@@ -214,6 +214,41 @@ def test_a_service_failing_at_start_up_fails_the_run_in_one_line() -> None:
     assert "/dev/nonexistent" in proc.stderr
 
 
+def test_an_endpoint_in_use_is_refused_before_anything_starts() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        proc = teleop("up", "--duration", "1", "--dashboard", "off",
+                      "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}", timeout=60)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert f"zenoh.endpoint = 'tcp/127.0.0.1:{port}': address in use" in proc.stderr
+    assert "starting" not in proc.stdout
+
+
+@pytest.mark.network
+def test_up_on_the_endpoint_of_a_running_session_is_refused() -> None:
+    """A second ``teleop up`` on a running session's endpoint (a real zenoh controller
+    session listening there) starts nothing and says so in one line, exit 2 (without the
+    check: exit 1, a zenoh error, and its master and hand connected to the running
+    session's controller until they were killed)."""
+    from teleop.transport.zenoh_bus import ZenohBus
+
+    port = free_port()
+    endpoint = f"tcp/127.0.0.1:{port}"
+    bus = ZenohBus("controller", session=f"busy{port}", listen=[endpoint], connect=[])
+    try:
+        proc = teleop("up", "--duration", "2", "--dashboard", "off",
+                      "--set", f"zenoh.endpoint={endpoint}",
+                      "--set", f"session.name=busy{port}", timeout=60)
+    finally:
+        bus.close()
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and "address in use" in proc.stderr
+    assert "starting" not in proc.stdout
+
+
 def test_omega7_without_its_sdk_is_a_one_line_error() -> None:
     import importlib.util
 
