@@ -14,8 +14,17 @@ safe-side rule (the larger force and lever in, the smaller out) keeps 0.6 J per 
 relaxed operator (the default) on the same block holds 1,200-1,203 over the same 10
 minutes.
 
-Strict: when a change makes these grasps hold, this test fails until the marker goes, and
-the README's energy-budget paragraph is corrected with it.
+What is checked, in CI's time: the first sign of it, the hand's tank holding the set-points
+back through a squeeze (the `hand starved` alarm: a spell of 1.5 s; healthy runs are never
+held back over 0.05 s at a time, tests/services/starve_spells.py). In lockstep it first fires
+at 38.9 s, while the grasps are still full; over 50 s it fires three times (with tanks of
+100 J the same run is never held back, so the check can pass). (Until 2026-11-29 the
+test ran 120 s and asked every grasp to keep 0.9 of the first's peak, the weakest at 0.80:
+52 s of CI, where this takes ~20 s; `teleop budget --seconds 120 --set
+master.virtual.style=hard --set hand.sim.object.kind=block` shows the grasps.)
+
+Strict: when a change makes these squeezes affordable, this test fails until the marker goes,
+and the README's energy-budget paragraph is corrected with it.
 """
 
 from __future__ import annotations
@@ -23,7 +32,6 @@ from __future__ import annotations
 import pytest
 
 from services.lockstep import run_lockstep
-from teleop.analysis.energy_budget import grasp_budget
 from teleop.config import load_config
 
 pytestmark = pytest.mark.slow
@@ -33,11 +41,14 @@ pytestmark = pytest.mark.slow
                    "hard squeeze of the block 6-7x both ways and keeps ~0.6 J a squeeze (0.41 "
                    "J a grasp charged, 1.4 mJ net taken); the stores run out after ~18 grasps "
                    "(docs/controllers.md, 'Hard squeezes over ten minutes')")
-def test_the_hard_operators_grasps_on_the_block_hold_for_two_minutes() -> None:
+def test_the_hard_operators_squeezes_on_the_block_never_starve_the_hand() -> None:
     cfg = load_config(None, ["master.virtual.style=hard", "hand.sim.object.kind=block"])
-    r = run_lockstep(cfg, 120.0, seed=1)
-    peaks = [b.peak_pressure for b in grasp_budget(r, cfg.master.virtual.cycle_s)]
-    assert len(peaks) >= 25
-    assert peaks[0] > 4000  # the squeeze reached the servo's limit
-    weakest = min(peaks)
-    assert weakest >= 0.9 * peaks[0], f"weakest grasp {weakest:.0f} of the first {peaks[0]:.0f}"
+    seen = {"spells": 0}
+
+    def hook(_t: float, ctx: object) -> None:
+        hand = getattr(ctx, "hand")  # noqa: B009
+        seen["spells"] = hand.starve.spells
+
+    r = run_lockstep(cfg, 50.0, seed=1, hook=hook)
+    assert float(r.pressure.max()) > 4000  # the squeezes reached the servo's limit
+    assert seen["spells"] == 0, f"the hand was starved {seen['spells']} times in 50 s"

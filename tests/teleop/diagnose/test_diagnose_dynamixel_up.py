@@ -72,13 +72,25 @@ def _record_once(tmp: Path, name: str, effect: tuple[str, ...]) -> Path:
     return rec / "hand.csv"
 
 
-def _diagnose(csv: Path) -> dict:
-    proc = subprocess.run(
+def _diagnose_each(*csvs: Path) -> list[dict]:
+    """The JSON reports of ``teleop diagnose`` on each recording, the diagnoses run at once
+    (CPU-bound, and nothing else runs beside a real-time test: one core each)."""
+    procs = [subprocess.Popen(
         [sys.executable, "-m", "teleop.cli", "diagnose", str(csv), "--model", "finger",
          "--finger", "1", "--skip", str(SKIP_S), "--split-gaps", "--json", "-"],
-        capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    return json.loads(proc.stdout)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for csv in csvs]
+    docs = []
+    try:
+        for proc in procs:
+            out, err = proc.communicate(timeout=600)
+            assert proc.returncode == 0, err[-2000:]
+            docs.append(json.loads(out))
+    finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    return docs
 
 
 def delay_named(doc: dict) -> str:
@@ -116,7 +128,7 @@ def test_a_dead_time_in_the_emulated_servos_is_named_from_the_up_recording(
         tmp_path: Path) -> None:
     csv = _record(tmp_path, "delay", ("--effect", f"dead_time={DEAD_TIME_S}"))
     assert "hand_backend: dynamixel" in csv.read_text()[:2000]  # the driver is on record
-    doc = _diagnose(csv)
+    doc, clean = _diagnose_each(csv, _record(tmp_path, "clean", ()))
     why = delay_named(doc)
     assert not why, why
     first = doc["effects"][0]
@@ -135,7 +147,6 @@ def test_a_dead_time_in_the_emulated_servos_is_named_from_the_up_recording(
     # angle; now it starts there, at the measured load: tests/sim/test_finger_hand_clock.py)
     assert "sensor_offset" not in named_effects(doc), doc["effects"]
 
-    clean = _diagnose(_record(tmp_path, "clean", ()))
     named = named_effects(clean)
     # the dynamixel path has no such delay, nor a lag that could stand in for one
     assert named.get("dead_time", 0.0) < 0.25 * DEAD_TIME_S, clean["effects"]
