@@ -22,6 +22,7 @@ from teleop.transport.codec import encode
 from teleop.transport.keys import data_key
 from teleop.transport.peer import PeerProcess, free_tcp_endpoint
 from teleop.transport.zenoh_bus import ZenohBus, zenoh_config
+from tests.mutants import fails
 
 pytestmark = pytest.mark.network
 
@@ -215,3 +216,69 @@ def test_unusable_endpoints_are_one_line_config_errors(master_bus: ZenohBus,
         with pytest.raises(ConfigError, match="cannot open a session listening on") as info:
             ZenohBus("hand", session="t", listen=listen, connect=[])
         assert "\n" not in str(info.value)
+
+
+def _second_master_run(endpoint: str, per_token_events: bool = False) -> None:
+    """Two services of one role in a session (a stray ``teleop run master``): zenoh hands the
+    controller's liveliness subscriber one token per key, not per session (measured: no
+    event when a second token appears on the key, none when it goes, DELETE only with the
+    last), so the stray's arrival starts no new sender epoch (its numbering, behind the
+    first master's, is stale and dropped) and its exit does not make the master look dead.
+    ``per_token_events``: the controller's bus given the events a per-token subscriber would
+    deliver (a PUT when the stray joins: a new epoch; a DELETE when it leaves)."""
+    ctrl = ZenohBus("controller", session="t", listen=[endpoint], connect=[])
+    first = ZenohBus("master", session="t", listen=[], connect=[endpoint])
+    stray: ZenohBus | None = None
+    got: list[int] = []
+
+    def send(bus: ZenohBus, seqs: range) -> None:
+        for i in seqs:
+            bus.publish("master_state", MasterState(Header(i, time.monotonic(), 0.0), 0.01, 0.0))
+
+    def received(n: int) -> Callable[[], bool]:
+        def done() -> bool:
+            got.extend(r.message.header.seq for r in ctrl.receive("master_state"))
+            return len(got) >= n
+        return done
+
+    try:
+        wait_for(lambda: ctrl.alive("master"), 10.0, "the first master's liveliness")
+        time.sleep(0.2)  # let the subscriber declaration propagate
+        send(first, range(100, 103))
+        wait_for(received(3), 5.0, "the first master's messages")
+        stray = ZenohBus("master", session="t", listen=[], connect=[endpoint])
+        wait_for(lambda: len(stray._session.info.peers_zid()) > 0, 10.0, "the stray's link")
+        time.sleep(0.3)  # its token and subscriptions propagate
+        if per_token_events:
+            ctrl._reset_from.add("master")
+        ctrl.receive("master_state")  # a new epoch, if any, would be taken here
+        send(stray, range(1, 4))
+        send(first, range(103, 106))
+        wait_for(received(6), 5.0, "the first master's next messages")
+        stray.close()
+        time.sleep(0.3)
+        if per_token_events:
+            ctrl._alive.discard("master")
+        assert ctrl.alive("master")  # the first master's token still holds the key
+        send(first, range(106, 108))
+        wait_for(received(8), 5.0, "the messages after the stray left")
+        first.close()
+        wait_for(lambda: not ctrl.alive("master"), 5.0, "the last token to go")
+    finally:
+        for bus in (stray, first, ctrl):
+            if bus is not None:
+                bus.close()
+    assert got == [100, 101, 102, 103, 104, 105, 106, 107]
+    assert ctrl.stats().rejects.count("stale_seq") == 3  # the stray's three
+
+
+def test_a_second_master_joining_and_leaving_neither_takes_over_nor_kills_the_first(
+        endpoint: str) -> None:
+    """Pins that behaviour (see :func:`_second_master_run`)."""
+    _second_master_run(endpoint)
+
+
+def test_with_per_token_liveliness_events_the_stray_would_be_heard(endpoint: str) -> None:
+    """Kept mutant: what the check above guards against (a zenoh that delivered an event
+    per token) makes it fail."""
+    assert fails(lambda: _second_master_run(endpoint, per_token_events=True))
