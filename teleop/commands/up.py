@@ -69,20 +69,29 @@ def resolve_dashboard(arg: str | None, cfg_mode: str, cfg_path: str,
 
 def check_listen_endpoints_free(cfg: TeleopConfig) -> None:
     """UserInputError, before anything starts, if an endpoint a service of this run would
-    listen on is taken (another ``teleop up`` of the same endpoint, typically; see
-    :mod:`teleop.transport.endpoint_check`)."""
-    from teleop.transport.endpoint_check import endpoint_in_use
+    listen on is taken (another ``teleop up`` of the same endpoint, typically) or is not
+    this machine's (see :mod:`teleop.transport.endpoint_check`)."""
+    import errno
+
+    from teleop.transport.endpoint_check import endpoint_bind_errno
 
     z = cfg.zenoh  # what the controller listens on (``zenoh_bus.role_endpoints``, which
     # imports zenoh: not worth its start-up time here); every role listens on ``listen``
     named = [(f"zenoh.listen[{i}]", e) for i, e in enumerate(z.listen)]
     named += [("zenoh.endpoint", z.endpoint)] if z.endpoint else []
     for key, endpoint in named:
-        if endpoint_in_use(endpoint):
+        why = endpoint_bind_errno(endpoint)
+        if why == errno.EADDRINUSE:
             raise UserInputError(
                 f"{key} = {endpoint!r}: address in use (another teleop session, or another "
                 "program, listens there); stop it, or give this run its own endpoint, e.g. "
                 "--set zenoh.endpoint=tcp/127.0.0.1:7448")
+        if why == errno.EADDRNOTAVAIL:
+            raise UserInputError(
+                f"{key} = {endpoint!r}: not an address of this machine, and teleop up "
+                "listens there (it starts the controller here); for a controller on another "
+                "machine run each service with teleop run (README, 'Running on several "
+                "machines')")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -11,12 +11,13 @@ and exit status 2, with nothing started.
 
 The check binds a socket of the endpoint's kind (``tcp``, ``tls`` and ``ws``: a TCP socket
 with ``SO_REUSEADDR``, as a listener does, so connections lingering in ``TIME_WAIT`` do not
-count; ``udp`` and ``quic``: a UDP socket) to its address and releases it at once.  Only
-``EADDRINUSE`` means taken.  Anything else (an address that is not this machine's, a port
-below 1024, a name that does not resolve, a protocol without an IP address such as
-``unixsock-stream``, port 0) is left for zenoh to report when the controller opens its
-session.  A check, not a lock: a program that takes the port between this check and the
-controller's bind still fails the run the old way.
+count; ``udp`` and ``quic``: a UDP socket) to its address and releases it at once.
+``EADDRINUSE`` means taken; ``EADDRNOTAVAIL`` for every address the host resolves to means
+it is not this machine's (a remote controller's address given to ``teleop up``, which starts
+the controller here).  Anything else (a port below 1024, a name that does not resolve, a
+protocol without an IP address such as ``unixsock-stream``, port 0) is left for zenoh to
+report when the controller opens its session.  A check, not a lock: a program that takes the
+port between this check and the controller's bind still fails the run the old way.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from __future__ import annotations
 import errno
 import socket
 
-__all__ = ["endpoint_address", "endpoint_in_use"]
+__all__ = ["endpoint_address", "endpoint_bind_errno", "endpoint_in_use"]
 
 #: zenoh protocol -> socket type of its listener
 _SOCKET_TYPES = {"tcp": socket.SOCK_STREAM, "tls": socket.SOCK_STREAM,
@@ -52,17 +53,20 @@ def endpoint_address(endpoint: str) -> tuple[int, str, int] | None:
     return kind, host, port
 
 
-def endpoint_in_use(endpoint: str) -> bool:
-    """Whether something already listens on ``endpoint`` on this machine (see the module
-    docstring: only a bind refused with ``EADDRINUSE`` counts)."""
+def endpoint_bind_errno(endpoint: str) -> int | None:
+    """Why a listener could not bind ``endpoint`` on this machine, as an errno:
+    ``EADDRINUSE`` if one of its resolved addresses is taken, else ``EADDRNOTAVAIL`` if none
+    of them is this machine's (a remote host's address), else None (free, or nothing this
+    check judges: see the module docstring)."""
     parsed = endpoint_address(endpoint)
     if parsed is None:
-        return False
+        return None
     kind, host, port = parsed
     try:
         infos = socket.getaddrinfo(host, port, type=kind)
     except (OSError, UnicodeError):
-        return False
+        return None
+    errors: list[int | None] = []
     for family, socktype, proto, _, addr in infos:
         try:
             with socket.socket(family, socktype, proto) as s:
@@ -71,5 +75,16 @@ def endpoint_in_use(endpoint: str) -> bool:
                 s.bind(addr)
         except OSError as exc:
             if exc.errno == errno.EADDRINUSE:
-                return True
-    return False
+                return errno.EADDRINUSE
+            errors.append(exc.errno)
+        else:
+            errors.append(None)
+    if errors and all(e == errno.EADDRNOTAVAIL for e in errors):
+        return errno.EADDRNOTAVAIL
+    return None
+
+
+def endpoint_in_use(endpoint: str) -> bool:
+    """Whether something already listens on ``endpoint`` on this machine (see the module
+    docstring: only a bind refused with ``EADDRINUSE`` counts)."""
+    return endpoint_bind_errno(endpoint) == errno.EADDRINUSE

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import errno
 import socket
 
 import pytest
 
-from teleop.transport.endpoint_check import endpoint_address, endpoint_in_use
+from teleop.transport.endpoint_check import endpoint_address, endpoint_bind_errno, endpoint_in_use
 
 
 @pytest.mark.parametrize(("endpoint", "expected"), [
@@ -60,9 +61,22 @@ def test_a_closed_connection_in_time_wait_does_not_count() -> None:
 
 
 @pytest.mark.parametrize("endpoint", [
-    "tcp/10.255.255.1:7447",  # not this machine's address
+    "tcp/192.0.2.1:7447",  # not this machine's address (TEST-NET-1): not "in use"
     "tcp/no-such-host.invalid:7447",  # does not resolve
     "tcp/127.0.0.1:notaport",
 ])
 def test_what_the_check_cannot_judge_is_left_to_zenoh(endpoint: str) -> None:
     assert not endpoint_in_use(endpoint)
+
+
+def test_why_a_listener_could_not_bind() -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        s.listen()
+        port = s.getsockname()[1]
+        assert endpoint_bind_errno(f"tcp/127.0.0.1:{port}") == errno.EADDRINUSE
+    assert endpoint_bind_errno(f"tcp/127.0.0.1:{port}") is None
+    assert endpoint_bind_errno("tcp/192.0.2.1:7447") == errno.EADDRNOTAVAIL  # TEST-NET-1
+    assert endpoint_bind_errno("udp/192.0.2.1:7447") == errno.EADDRNOTAVAIL
+    assert endpoint_bind_errno("tcp/no-such-host.invalid:7447") is None
+    assert endpoint_bind_errno("unixsock-stream//tmp/z.sock") is None
