@@ -9,7 +9,10 @@ the hand is read at its 40 Hz state rate. Each sample's readings go through
 ``teleop.control.object_port.track_fingers`` (what the two-layer hand charges, before the
 force margin); the physical work on the object over the same sample comes from the
 simulator's own audit (``SimHand.port_audit_j``). Prints, per phase (squeeze, hold, release),
-the estimate's work into the object and back and the audit's; all three fingers together.
+the estimate's work into the object and back and the audit's; all three fingers together;
+and the servo's worst case over the phase (``controller.ports.servo_torque_max_nm`` times
+the motors' inward motion while their cells report contact: the "second bound" of
+docs/controllers.md, never the smaller one here).
 
 Used for docs/controllers.md, "Hard squeezes over ten minutes": on the block the estimate
 reads 10-15x the work the face exchanges in every phase, both ways, and its safe-side rule
@@ -38,16 +41,19 @@ def setpoint_rad(t_s: float, goal_rad: float) -> float:
     return goal_rad * min(t_s, 1.0) if t_s < 3.0 else 0.0
 
 
-def phases(obj: str, goal_rad: float, overrides: list[str]) -> list[tuple[str, float, float,
-                                                                            float, float]]:
-    """(phase, estimated into J, estimated back J, audit into J, audit back J)."""
+def phases(obj: str, goal_rad: float, overrides: list[str]
+           ) -> list[tuple[str, float, float, float, float, float]]:
+    """(phase, estimated into J, estimated back J, audit into J, audit back J, the servo's
+    worst case J)."""
     cfg = load_config(None, [f"hand.sim.object.kind={obj}", *overrides])
     hand = SimHand(cfg.hand, seed=1)
     hand.start()
     model = TactileModel()
     tracks = None
-    sums = {name: [0.0, 0.0, 0.0, 0.0] for name, _, _ in PHASES}
+    sums = {name: [0.0, 0.0, 0.0, 0.0, 0.0] for name, _, _ in PHASES}
     d0 = b0 = 0.0
+    tau_max = cfg.controller.ports.servo_torque_max_nm
+    x_prev: list[float] | None = None
     n = int(round(PHASES[-1][2] / STATE_DT_S))
     for k in range(1, n + 1):
         t = k * STATE_DT_S
@@ -59,6 +65,12 @@ def phases(obj: str, goal_rad: float, overrides: list[str]) -> list[tuple[str, f
         d1, b1 = hand.port_audit_j()
         name = next(p for p, lo, hi in PHASES if lo < t <= hi + 1e-9)
         s = sums[name]
+        x = [f.motor_angle_rad for f in reading.fingers[:3]]
+        if x_prev is not None:
+            s[4] += tau_max * sum(max(a - b, 0.0) for a, b, f in
+                                  zip(x, x_prev, reading.fingers[:3], strict=True)
+                                  if any(f.contact))
+        x_prev = x
         s[0] += sum(w for w, _ in works)
         s[1] += sum(w for _, w in works)
         s[2] += d1 - d0
@@ -73,14 +85,16 @@ def main(argv: list[str]) -> int:
     obj = pos[0] if pos else "block"
     goal = float(pos[1]) if len(pos) > 1 else 2.5
     print(f"{obj}, set-point {goal} rad; J, all three fingers")
-    print("| phase | estimate into | estimate back | estimate net | audit into | audit back |")
-    print("|---|---|---|---|---|---|")
-    tot = [0.0, 0.0, 0.0, 0.0]
-    for name, ei, eb, ai, ab in phases(obj, goal, overrides):
-        print(f"| {name} | {ei:.3f} | {eb:.3f} | {ei - eb:+.3f} | {ai:.3f} | {ab:.3f} |")
-        tot = [a + b for a, b in zip(tot, (ei, eb, ai, ab), strict=True)]
+    print("| phase | estimate into | estimate back | estimate net | audit into | audit back "
+          "| servo worst case |")
+    print("|---|---|---|---|---|---|---|")
+    tot = [0.0, 0.0, 0.0, 0.0, 0.0]
+    for name, ei, eb, ai, ab, sw in phases(obj, goal, overrides):
+        print(f"| {name} | {ei:.3f} | {eb:.3f} | {ei - eb:+.3f} | {ai:.3f} | {ab:.3f} "
+              f"| {sw:.3f} |")
+        tot = [a + b for a, b in zip(tot, (ei, eb, ai, ab, sw), strict=True)]
     print(f"| all | {tot[0]:.3f} | {tot[1]:.3f} | {tot[0] - tot[1]:+.3f} | {tot[2]:.3f} | "
-          f"{tot[3]:.3f} |")
+          f"{tot[3]:.3f} | {tot[4]:.3f} |")
     return 0
 
 
