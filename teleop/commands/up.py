@@ -73,13 +73,11 @@ def check_listen_endpoints_free(cfg: TeleopConfig) -> None:
     this machine's (see :mod:`teleop.transport.endpoint_check`)."""
     import errno
 
-    from teleop.transport.endpoint_check import endpoint_bind_errno
+    from teleop.transport.endpoint_check import endpoint_bind_errno, role_endpoints
 
-    z = cfg.zenoh  # what the controller listens on (``zenoh_bus.role_endpoints``, which
-    # imports zenoh: not worth its start-up time here); every role listens on ``listen``
-    named = [(f"zenoh.listen[{i}]", e) for i, e in enumerate(z.listen)]
-    named += [("zenoh.endpoint", z.endpoint)] if z.endpoint else []
-    for key, endpoint in named:
+    listen, _ = role_endpoints("controller", cfg.zenoh)  # every role listens on zenoh.listen
+    for i, endpoint in enumerate(listen):
+        key = "zenoh.endpoint" if i == len(cfg.zenoh.listen) else f"zenoh.listen[{i}]"
         why = endpoint_bind_errno(endpoint)
         if why == errno.EADDRINUSE:
             raise UserInputError(

@@ -137,11 +137,11 @@ def role_password(sec: SecurityConfig, role: str) -> str:
 def is_listener(cfg: TeleopConfig, role: str) -> bool:
     """Whether ``role`` listens (so must check the users connecting to it).
 
-    As :func:`teleop.transport.zenoh_bus.role_endpoints` decides: the controller listens on
+    As :func:`teleop.transport.endpoint_check.role_endpoints` decides: the controller listens on
     ``zenoh.endpoint``; any role listens on ``zenoh.listen``.  The observer only connects.
     """
     check_secure_role(role)
-    from teleop.transport.zenoh_bus import role_endpoints
+    from teleop.transport.endpoint_check import role_endpoints
 
     return bool(role_endpoints(role, cfg.zenoh)[0])
 

@@ -25,7 +25,19 @@ from __future__ import annotations
 import errno
 import socket
 
-__all__ = ["endpoint_address", "endpoint_bind_errno", "endpoint_in_use"]
+from teleop.config.transport import ZenohConfig
+
+__all__ = ["endpoint_address", "endpoint_bind_errno", "role_endpoints"]
+
+def role_endpoints(role: str, zcfg: ZenohConfig) -> tuple[list[str], list[str]]:
+    """``(listen, connect)`` of ``role``: the controller listens on ``zcfg.endpoint``.  (Here,
+    not in :mod:`teleop.transport.zenoh_bus`, which imports zenoh: ``teleop up`` asks before
+    it starts anything, without that start-up time.)"""
+    listen, connect = list(zcfg.listen), list(zcfg.connect)
+    if zcfg.endpoint:
+        (listen if role == "controller" else connect).append(zcfg.endpoint)
+    return listen, connect
+
 
 #: zenoh protocol -> socket type of its listener
 _SOCKET_TYPES = {"tcp": socket.SOCK_STREAM, "tls": socket.SOCK_STREAM,
@@ -83,8 +95,3 @@ def endpoint_bind_errno(endpoint: str) -> int | None:
         return errno.EADDRNOTAVAIL
     return None
 
-
-def endpoint_in_use(endpoint: str) -> bool:
-    """Whether something already listens on ``endpoint`` on this machine (see the module
-    docstring: only a bind refused with ``EADDRINUSE`` counts)."""
-    return endpoint_bind_errno(endpoint) == errno.EADDRINUSE

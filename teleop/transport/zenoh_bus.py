@@ -50,6 +50,7 @@ from teleop.transport.bus import (
 )
 from teleop.transport.clock import Clock, MonotonicClock
 from teleop.transport.codec import encode
+from teleop.transport.endpoint_check import role_endpoints
 from teleop.transport.keys import (
     ROLES,
     SIGNALS,
@@ -73,14 +74,6 @@ def _drain(queue: collections.deque[tuple[bytes, float]]) -> Iterator[tuple[byte
     """Pop from the left until empty (safe while a zenoh thread appends on the right)."""
     while queue:
         yield queue.popleft()
-
-
-def role_endpoints(role: str, zcfg: ZenohConfig) -> tuple[list[str], list[str]]:
-    """``(listen, connect)`` of ``role``: the controller listens on ``zcfg.endpoint``."""
-    listen, connect = list(zcfg.listen), list(zcfg.connect)
-    if zcfg.endpoint:
-        (listen if role == "controller" else connect).append(zcfg.endpoint)
-    return listen, connect
 
 
 def zenoh_config(mode: str, listen: Sequence[str], connect: Sequence[str],

@@ -7,8 +7,11 @@ import socket
 
 import pytest
 
-from teleop.transport.endpoint_check import endpoint_address, endpoint_bind_errno, endpoint_in_use
+from teleop.transport.endpoint_check import endpoint_address, endpoint_bind_errno
 
+
+def endpoint_in_use(endpoint: str) -> bool:
+    return endpoint_bind_errno(endpoint) == errno.EADDRINUSE
 
 @pytest.mark.parametrize(("endpoint", "expected"), [
     ("tcp/127.0.0.1:7447", (socket.SOCK_STREAM, "127.0.0.1", 7447)),
