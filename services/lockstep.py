@@ -30,6 +30,7 @@ from services.hand_service import HandService
 from services.master_service import MasterService
 from services.samples import ControllerSample, HandSample, MasterSample
 from services.telemetry import Telemetry
+from teleop.analysis.port_audit import audit_margin_j
 from teleop.config import TeleopConfig
 from teleop.devices.base import HandBackend, MasterBackend
 from teleop.transport.clock import VirtualClock
@@ -143,10 +144,9 @@ class LockstepResult:
         scale (1 = plain joules)."""
         if not self.has_audit:
             return np.full_like(self.t_s, np.nan)
-        rho = self.energy_scale
-        return (self.audit_initial_j
-                + rho * (self.audit_operator_taken_j - self.audit_operator_delivered_j)
-                + self.audit_environment_taken_j - self.audit_environment_delivered_j)
+        return audit_margin_j(self.audit_initial_j, self.energy_scale,
+                              self.audit_operator_taken_j, self.audit_operator_delivered_j,
+                              self.audit_environment_taken_j, self.audit_environment_delivered_j)
 
     @property
     def audit_energy_generated_j(self) -> float:

@@ -86,14 +86,17 @@ def build_service(role: str, cfg: TeleopConfig, bus: Any, backend: Any,
 
 
 def _role_meta(role: str, cfg: TeleopConfig) -> tuple[tuple[str, str], ...]:
-    """What a recording must say for the tools that read it: the master's grasp threshold
-    (``teleop grasps DIR``); the hand's driver, for ``teleop diagnose --model finger`` to
-    rebuild the motor commands: the backend and, for the dynamixel driver, its moving speed
-    and overload back-off (the targets it writes differ from the set-points while overloaded)."""
+    """What a recording must say for the tools that read it: the master's grasp threshold and
+    power scale (``teleop grasps DIR``); the hand's driver, for ``teleop diagnose --model
+    finger`` to rebuild the motor commands: the backend and, for the dynamixel driver, its
+    moving speed and overload back-off (the targets it writes differ from the set-points
+    while overloaded)."""
     if role == "master":  # where a grasp starts, for ``teleop grasps DIR``
         from teleop.analysis.grasps import grasp_threshold_m
 
-        return (("grasp_threshold_m", f"{grasp_threshold_m(cfg):.6g}"),)
+        return (("grasp_threshold_m", f"{grasp_threshold_m(cfg):.6g}"),
+                # master-side joules to hand-side ones, for the physical audit of the run
+                ("energy_scale", f"{cfg.controller.tank.energy_scale:.17g}"))
     if role != "hand":
         return ()
     out: tuple[tuple[str, str], ...] = (("hand_backend", cfg.hand.backend),)
@@ -209,8 +212,9 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         record = Path(opts.record_dir) / f"{role}.csv" if opts.record_dir else None
         meta = (("role", role), ("controller", cfg.controller.kind),
                 ("session", cfg.session.name), ("rate_hz", f"{rate:g}"), *_role_meta(role, cfg))
+        audit_source = getattr(backend, "port_audit_j", None)
         telemetry = Telemetry(role, _dashboard_stream(opts), record, opts.epoch_s,
-                              cfg.dashboard.rate_hz, meta)
+                              cfg.dashboard.rate_hz, meta, audit_source)
         bus = ZenohBus.from_config(role, cfg, clock=clock, announce=False)
         telemetry.rejects_source = lambda: bus.stats().rejects
         svc = build_service(role, cfg, bus, backend, clock)
@@ -234,7 +238,6 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
         tel = telemetry
         is_hand = role == "hand"
         soak = _soak_log(opts, role, rate, clock.now_s())
-        audit_source = getattr(backend, "port_audit_j", None)
 
         last: list[Any] = [None]  # the latest sample, for the status line
 

@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from teleop.analysis.port_audit import audit_margin_j
+
 GROWTH_GOAL_PCT = 10.0
 ROBUST_SAMPLES = 5  # growth compares medians of this many samples (a 10 MB spike that comes
 #                     and goes within seconds is not growth)
@@ -129,7 +131,8 @@ def energy_audit(master: Sequence[dict[str, float]], hand: Sequence[dict[str, fl
         rho (master initial + taken - delivered at the operator)
           + hand initial + every controller's initial + taken - delivered at the object >= 0
 
-    (``rho`` = ``energy_scale``; a controller's initial energy counts from its start)."""
+    (``rho`` = ``energy_scale``; a controller's initial energy counts from its start; the
+    formula is :func:`teleop.analysis.port_audit.audit_margin_j`)."""
     m = [d for d in master if "audit_delivered_j" in d]
     h = [d for d in hand if "audit_delivered_j" in d]
     if not m or not h:
@@ -137,15 +140,15 @@ def energy_audit(master: Sequence[dict[str, float]], hand: Sequence[dict[str, fl
     tm = np.array([d["t_s"] for d in m])
     th = np.array([d["t_s"] for d in h])
     rho = energy_scale
-    op = rho * (m[0]["initial_j"] + np.array([d["audit_taken_j"] for d in m])
-                - np.array([d["audit_delivered_j"] for d in m]))
-    env_net = np.array([d["audit_taken_j"] - d["audit_delivered_j"] for d in h])
-    env = h[0]["initial_j"] + _held(th, env_net, tm)
-    ctrl = np.zeros_like(tm)
+    initial = np.full_like(tm, rho * m[0]["initial_j"] + h[0]["initial_j"])
     for c in controllers:
         if c:
-            ctrl += np.where(tm >= c[0]["t_s"], c[0]["initial_j"], 0.0)
-    margin = op + env + ctrl
+            initial += np.where(tm >= c[0]["t_s"], c[0]["initial_j"], 0.0)
+    margin = audit_margin_j(
+        initial, rho, np.array([d["audit_taken_j"] for d in m]),
+        np.array([d["audit_delivered_j"] for d in m]),
+        _held(th, np.array([d["audit_taken_j"] for d in h]), tm),
+        _held(th, np.array([d["audit_delivered_j"] for d in h]), tm))
     ok = np.isfinite(margin)
     margin = margin[ok]
     return {

@@ -1,7 +1,9 @@
 """Where a live service's samples go: a recording CSV and the rerun dashboard.
 
 Every tick's sample is written to the recording (``--record DIR`` -> ``DIR/<role>.csv``, the
-DESIGN.md format: ``t_s`` then SI-unit columns).  The dashboard gets the signals at
+DESIGN.md format: ``t_s`` then SI-unit columns), and with a simulated port (the virtual
+operator, the simulated hand) the physical work done at it so far (``audit_delivered_j``,
+``audit_taken_j``: :mod:`teleop.analysis.port_audit`).  The dashboard gets the signals at
 ``dashboard.rate_hz`` and every event (passivity limiting, watchdog, dropped messages) as it
 happens.  Time on both is seconds since the session epoch.
 """
@@ -21,6 +23,7 @@ from services.samples import (
     sample_columns,
     sample_row,
 )
+from teleop.analysis.port_audit import AUDIT_COLUMNS
 from teleop.devices.base import HandReading
 from teleop.recording import RecordingWriter
 from teleop.transport.safe_decoder import RejectCounts
@@ -48,8 +51,12 @@ class Telemetry:
 
     def __init__(self, role: str, rec: Any | None, record_path: Path | None,
                  epoch_s: float | None, dashboard_rate_hz: float,
-                 meta: tuple[tuple[str, str], ...] = ()) -> None:
+                 meta: tuple[tuple[str, str], ...] = (),
+                 audit_source: Callable[[], tuple[float, float]] | None = None) -> None:
         self.role = role
+        #: the backend's physical port audit (delivered, taken; J, cumulative), recorded with
+        #: every sample when given (a simulated operator or hand: teleop.analysis.port_audit)
+        self.audit_source = audit_source
         self.rec = rec
         self.record_path = record_path
         self.meta = meta
@@ -82,11 +89,15 @@ class Telemetry:
         if self.record_path is not None:
             if self._writer is None:
                 cols = sample_columns(sample)
+                if self.audit_source is not None:
+                    cols += list(AUDIT_COLUMNS)
                 # clock times besides t_s (the hand's read_t_s, write_t_s): on t_s's epoch too
                 self._clock_cols = [i for i, c in enumerate(cols) if c.endswith("_t_s") and i]
                 self._writer = RecordingWriter(self.record_path, cols, meta=self.meta)
             row = sample_row(sample)
             row[0] = t
+            if self.audit_source is not None:
+                row += self.audit_source()
             for i in self._clock_cols:
                 row[i] -= self.epoch_s  # type: ignore[operator]
             self._writer.write(row)

@@ -9,7 +9,11 @@ share the launcher's epoch):
 * whether an energy store sat empty while the operator asked for motion: the master's and the
   hand's tanks and the controller's store below ``floor_j`` while the trigger is closed past
   the grasp threshold (a closed trigger with an empty tank is a hand that ignores it);
-* which safety guards fired (watchdogs, servo-fault safe state, contact guards), for how long.
+* which safety guards fired (watchdogs, servo-fault safe state, contact guards), for how long;
+
+and, with the virtual operator and the simulated hand, whether the run was passive by the
+physics (:mod:`teleop.analysis.port_audit`: the work done at the trigger and on the object
+against the tanks' initial energy, not the controllers' books).
 
 A grasp during which a service's recording stops for more than :data:`GAP_S` (the process was
 stalled or starved: a stalled master's operator script jumps ahead, a stalled hand misses its
@@ -36,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from teleop.analysis.grasps import GraspSeries, GraspStats, curl_grasps
+from teleop.analysis.port_audit import PortAudit, recorded_audit
 from teleop.errors import RecordingError
 from teleop.recording import Recording, read_recording
 
@@ -136,6 +141,7 @@ class RecordedRunReport:
     guards: tuple[GuardTime, ...]
     gaps: tuple[RecordingGap, ...] = ()  # every one longer than gap_bound_s
     gap_bound_s: float = GAP_S
+    audit: PortAudit | None = None  # the physical energy audit (simulated ports only)
 
     def interrupted(self, index: int) -> bool:
         """Whether a recording gap overlaps grasp ``index`` (it is then not judged)."""
@@ -173,7 +179,9 @@ class RecordedRunReport:
                            "min_j": e.min_j, "excused_s": e.excused_s} for e in self.empty],
                 "guards": [{"what": x.what, "active_s": x.active_s, "spells": x.spells,
                             "first_at_s": x.first_at_s}
-                           for x in self.guards]}
+                           for x in self.guards],
+                "energy_audit": (self.audit.as_dict() if self.audit is not None
+                                 else {"audited": False})}
 
 
 def read_run_dir(path: str | Path) -> RunRecordings:
@@ -271,13 +279,20 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
     hit = [_interrupted(gaps, g) for g in grasps.grasps]
     if hit and hit[0] and not all(hit):
         grasps = grasps.rebased(hit.index(False))
+    scale = m.meta_value("energy_scale", "1")
+    try:
+        rho = float(scale or "1")
+    except ValueError:
+        raise RecordingError(f"{m.source}: energy_scale {scale!r} is not a number") from None
     return RecordedRunReport(run.source, float(t[-1] - t[0]), threshold_m, floor_j, grasps,
-                             empty, tuple(guards), gaps, gap_s)
+                             empty, tuple(guards), gaps, gap_s, recorded_audit(m, h, c, rho))
 
 
 def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
-    """The per-grasp table, then the stores and the guards, one line each."""
+    """The per-grasp table, then the stores and the guards, one line each, then the
+    physical energy audit."""
     from teleop.analysis.grasps import format_grasps
+    from teleop.analysis.port_audit import format_audit
 
     g = r.grasps
     lost = [k for k in range(len(g.grasps)) if r.interrupted(k)]
@@ -324,4 +339,5 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
         when = (f" in {x.spells} spells, the first at {x.first_at_s:.1f} s"
                 if x.spells else "")
         lines.append(f"  {x.what:48s} {x.active_s:7.2f} s{when}")
+    lines.append(format_audit(r.audit))
     return "\n".join(lines)

@@ -21,7 +21,9 @@ Definitions
     within :attr:`StabilityCriteria.energy_tol_j` plus :attr:`StabilityCriteria.energy_rel_tol`
     of the throughput.  ``passive_ledger`` is the same test on the services' ledgers
     (``energy_generated_j``: their largest excess, negative = the margin); without an audit
-    (live recordings) ``passive`` falls back to the ledgers and ``passive_audit`` is None.
+    (recordings of a real hand or master: no simulated port) ``passive`` falls back to the
+    ledgers and ``passive_audit`` is None.  The tolerance is
+    :func:`teleop.analysis.port_audit.audit_tolerance_j`.
 
 ``tracking_rms_rad`` / ``force_rms_n``
     Finger angle against the set-point delayed by the forward path; displayed force against
@@ -55,6 +57,7 @@ from teleop.analysis.oscillation import (
     analyse_oscillation,
     highpass,
 )
+from teleop.analysis.port_audit import audit_tolerance_j
 
 Array = NDArray[np.float64]
 
@@ -238,7 +241,8 @@ def _audit(s: RunSignals, c: StabilityCriteria) -> tuple[bool | None, float]:
     if not margin.size or not np.all(np.isfinite(margin)):
         return None, math.nan
     gen = float(-np.min(margin))
-    tol = c.energy_tol_j + c.energy_rel_tol * (abs(s.audit_throughput_j) + s.initial_energy_j)
+    tol = audit_tolerance_j(s.audit_throughput_j, s.initial_energy_j, c.energy_tol_j,
+                            c.energy_rel_tol)
     return gen <= tol, gen
 
 

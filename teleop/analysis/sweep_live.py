@@ -4,7 +4,8 @@ The point's configuration is written to a temporary TOML file; ``teleop up --dur
 --record DIR --dashboard off --config FILE`` runs master, controller and hand as three
 processes in real time; their ``DIR/<role>.csv`` recordings are merged onto the master's
 time base (the others held at their latest sample) and turned into
-:class:`~teleop.analysis.stability.RunSignals` like a lockstep run.
+:class:`~teleop.analysis.stability.RunSignals` like a lockstep run, the physical energy audit
+included (:mod:`teleop.analysis.port_audit`: the run is judged passive by the physics).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from teleop.analysis.port_audit import ledger_initial_j, recorded_audit
 from teleop.analysis.stability import RunSignals
 from teleop.analysis.sweep_signals import signals_from_columns
 from teleop.config import TeleopConfig
@@ -45,18 +47,6 @@ def _triple(src: Recording, t: Array, name: str) -> Array:
     return np.column_stack([_held(src, t, f"{name}_f{i + 1}") for i in range(3)])
 
 
-def _initial_j(rec: Recording, tank: str) -> float:
-    """A side's initial tank energy from its ledger identity at the first sample.
-
-    initial = tank + out + sent + dissipated - in - received (missing accounts count 0).
-    """
-    def first(name: str) -> float:
-        return float(np.nan_to_num(rec.column(name)[0])) if rec.has(name) else 0.0
-
-    return (first(tank) + first("port_out_j") + first("sent_j") + first("dissipated_j")
-            - first("port_in_j") - first("received_j"))
-
-
 def signals_from_recordings(master: Recording, controller: Recording, hand: Recording,
                             cfg: TeleopConfig) -> RunSignals:
     """RunSignals from the three live recordings (master time base)."""
@@ -64,7 +54,7 @@ def signals_from_recordings(master: Recording, controller: Recording, hand: Reco
     pressure = np.column_stack([_held(hand, t, f"pressure_f{i // 9 + 1}_{i % 9}")
                                 for i in range(27)])
     m_tank = master.column("tank_j")
-    initial = _initial_j(master, "tank_j") + _initial_j(hand, "tank_j") + _initial_j(
+    initial = ledger_initial_j(master) + ledger_initial_j(hand) + ledger_initial_j(
         controller, "store_j")
     cols = {
         "t_s": t - t[0],
@@ -87,6 +77,12 @@ def signals_from_recordings(master: Recording, controller: Recording, hand: Reco
     }
     if master.has("trigger_position_m"):
         cols["trigger_position_m"] = master.column("trigger_position_m")
+    audit = recorded_audit(master, hand, controller, cfg.controller.tank.energy_scale)
+    if audit is not None:  # judged by the physics, like a lockstep run
+        cols["audit_margin_j"] = audit.margin_j
+        cols["audit_throughput_j"] = np.array([audit.throughput_j])
+        cols["ledger_audit_gap_j"] = np.array([audit.ledger_gap_operator_j,
+                                               audit.ledger_gap_environment_j])
     return signals_from_columns(cols, cfg, max(initial, 0.0))
 
 

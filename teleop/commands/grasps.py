@@ -13,6 +13,10 @@ The three recordings are read on one clock, as ``teleop up`` writes them; record
 services on separate machines (``zenoh.shared_clock=false``) each count from their own start
 and are not aligned here.
 
+With the virtual operator and the simulated hand the run is also audited by the physics:
+the work done at the trigger and on the object against the tanks' initial energy (not the
+controllers' books); the exit status is 1 when it shows energy created.
+
 With ``--floor R`` the exit status is 1 when a grasp falls below R of the first by pressure,
 closure or felt force, or a store sat empty for longer than ``--max-empty-s`` at a stretch.
 """
@@ -75,6 +79,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json_path != "-":
         info(args, format_recorded_run(report, args.every))
     write_json(args.json_path, report.as_dict())
+    if report.audit is not None and not report.audit.passive:
+        info(args, f"FAIL: the physics shows energy created ({report.audit.generated_j:.4f} J "
+             f"at {report.audit.min_at_s:.1f} s): the loop was not passive")
+        return 1
     if args.floor is None:
         return 0
     g = report.judged  # a grasp a recording gap interrupted is listed, not judged

@@ -239,3 +239,33 @@ def test_the_hand_records_when_it_really_read_and_wrote(tmp_path) -> None:  # no
     plain = HandService(cfg, hub2.bus("hand"), FakeHand())  # no clock (lockstep): t_s
     s = plain.tick(0.5)
     assert s.read_t_s == s.write_t_s == 0.5
+
+
+def test_a_simulated_port_records_the_physical_work_beside_every_sample(tmp_path) -> None:  # noqa: ANN001
+    """With an audit source (a simulated hand's ``port_audit_j``) the recording carries its
+    cumulative ``audit_delivered_j`` / ``audit_taken_j``, read at each sample; without one
+    (a real hand) no such columns."""
+    from services.telemetry import Telemetry
+    from teleop.recording import read_recording
+
+    cfg = load_config(None, [])
+    hub = InProcessHub.from_config(cfg, VirtualClock())
+    svc = HandService(cfg, hub.bus("hand"), FakeHand())
+    work = [0.0]
+
+    def audit() -> tuple[float, float]:
+        work[0] += 0.25
+        return work[0], work[0] / 5.0
+
+    tel = Telemetry("hand", None, tmp_path / "hand.csv", 0.0, 1.0, audit_source=audit)
+    plain = Telemetry("hand", None, tmp_path / "plain.csv", 0.0, 1.0)
+    for k in range(4):
+        s = svc.tick(k * svc.dt_s)
+        tel.emit(s, [])
+        plain.emit(s, [])
+    tel.close()
+    plain.close()
+    rec = read_recording(tmp_path / "hand.csv")
+    assert rec.column("audit_delivered_j").tolist() == [0.25, 0.5, 0.75, 1.0]
+    assert np.allclose(rec.column("audit_taken_j"), [0.05, 0.1, 0.15, 0.2])
+    assert not read_recording(tmp_path / "plain.csv").has("audit_delivered_j")
