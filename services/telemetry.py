@@ -52,7 +52,8 @@ class Telemetry:
     def __init__(self, role: str, rec: Any | None, record_path: Path | None,
                  epoch_s: float | None, dashboard_rate_hz: float,
                  meta: tuple[tuple[str, str], ...] = (),
-                 audit_source: Callable[[], tuple[float, float]] | None = None) -> None:
+                 audit_source: Callable[[], tuple[float, float]] | None = None,
+                 picture_rate_hz: float = 10.0) -> None:
         self.role = role
         #: the backend's physical port audit (delivered, taken; J, cumulative), recorded with
         #: every sample when given (a simulated operator or hand: teleop.analysis.port_audit)
@@ -63,6 +64,10 @@ class Telemetry:
         self.epoch_s = epoch_s
         self.period_s = 1.0 / dashboard_rate_hz
         self._next_log_s = -math.inf
+        # the hand's drawing and pressure bars cost ~2 ms a log in rerun's Python API (a
+        # scalar ~0.08 ms): logged at their own, lower rate
+        self.picture_period_s = 1.0 / picture_rate_hz
+        self._next_picture_s = -math.inf
         self._writer: RecordingWriter | None = None
         self._clock_cols: list[int] = []
         self._delays: dict[str, float] = {}
@@ -70,8 +75,14 @@ class Telemetry:
         #: where the dashboard gets the bus's rejection counts (set by the runner)
         self.rejects_source: Callable[[], RejectCounts] | None = None
         self._rejects_logged: tuple[tuple[str, int], ...] = ()
+        #: the signals, gathered and sent as columns every 0.2 s (a third of the loop's cost
+        #: of logging each value at once); events and pictures go to ``rec`` at once
+        self.cols: Any | None = None
         if rec is not None:  # import now, not inside the first tick
-            from teleop.viz import dashboard  # noqa: F401
+            from teleop.viz import dashboard
+
+            self.cols = dashboard.ScalarColumns(rec)
+            dashboard.warm_up()
 
     def _t(self, t_s: float) -> float:
         if self.epoch_s is None:
@@ -121,8 +132,9 @@ class Telemetry:
         if self.rejects_source is not None:
             by_reason = self.rejects_source().by_reason
             if by_reason != self._rejects_logged:
-                dash.log_rejects(self.rec, t, self.role, by_reason)
+                dash.log_rejects(self.cols, t, self.role, by_reason)
                 self._rejects_logged = by_reason
+        self.cols.flush_due(t)
 
     def _dropped_event(self, dash: Any, t: float, name: str, total: float) -> None:
         before = self._dropped.get(name, 0.0)
@@ -132,7 +144,7 @@ class Telemetry:
         self._dropped[name] = total
 
     def _log(self, dash: Any, t: float, s: Sample, reading: HandReading | None) -> None:
-        rec = self.rec
+        rec = self.cols
         if isinstance(s, MasterSample):
             dash.log_master(rec, t, trigger_position_m=s.trigger_position_m,
                             displayed_force_n=s.displayed_force_n, tank_j=s.tank_j,
@@ -150,8 +162,12 @@ class Telemetry:
             self._dropped_event(dash, t, "master states", s.master_dropped)
             self._dropped_event(dash, t, "hand states", s.hand_dropped)
         elif isinstance(s, HandSample) and reading is not None:
+            pictures = t >= self._next_picture_s
+            if pictures:
+                self._next_picture_s = t + self.picture_period_s
             dash.log_hand(rec, t, reading, tank_j=s.tank_j, port_in_j=s.port_in_j,
-                          port_out_j=s.port_out_j, delay_s=self._delays.get("HandSample"))
+                          port_out_j=s.port_out_j, delay_s=self._delays.get("HandSample"),
+                          pictures=pictures)
             self._dropped_event(dash, t, "hand commands", s.dropped)
 
     def close(self) -> None:
@@ -159,5 +175,7 @@ class Telemetry:
         if self._writer is not None:
             self._writer.close()
         if self.rec is not None:
+            if self.cols is not None:
+                self.cols.flush()
             self.rec.flush()
             self.rec.disconnect()

@@ -23,6 +23,7 @@ BENCHES: dict[str, str] = {
     "transport": "teleop.transport.bench:bench_transport",
     "sim": "sim.bench:bench_sim",
     "loop": "services.bench:bench_loop",
+    "dashboard": "services.bench_dashboard:bench_dashboard",
     "lockstep": "services.bench_lockstep:bench_lockstep",
     "servo": "sim.servo_emulator_bench:bench_servo",
     "takktile": "sim.hand_emulator_bench:bench_takktile",
@@ -37,11 +38,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("name", help="benchmark: " + ", ".join(sorted(BENCHES)))
     add_json_option(p)
     p.add_argument("--reference", default=None, metavar="DIR",
-                   help="lockstep only: a source tree of an earlier implementation (e.g. "
-                   "`git archive REV | tar -x -C DIR`), run side by side with this one")
+                   help="lockstep and dashboard: a source tree of an earlier implementation "
+                   "(e.g. `git archive REV | tar -x -C DIR`), run side by side with this one")
     p.add_argument("--repeats", type=int, default=None, metavar="N",
-                   help="lockstep only: alternations of this tree and the reference, best of "
-                   "N each (default 2; more on a loaded machine)")
+                   help="lockstep and dashboard: alternations of this tree and the reference "
+                   "(lockstep: best of N each; dashboard: median; default 2)")
     p.add_argument("--instructions", action="store_true",
                    help="lockstep only: also count the machine instructions of one simulated "
                    "second in this tree and the reference (valgrind's callgrind; load-"
@@ -64,15 +65,18 @@ def run(args: argparse.Namespace) -> int:
     fn = _load(args.name)
     check_output_path(args.json_path, "JSON")
     kwargs: dict[str, Any] = {}
+    side_by_side = ("lockstep", "dashboard")
     if getattr(args, "reference", None) is not None:
-        if args.name != "lockstep":
-            raise UserInputError(f"--reference: only for `bench lockstep`, not {args.name!r}")
+        if args.name not in side_by_side:
+            raise UserInputError(f"--reference: only for `bench lockstep` and `bench "
+                                 f"dashboard`, not {args.name!r}")
         from services.bench_lockstep import check_reference
 
         kwargs["reference"] = str(check_reference(args.reference))
     if getattr(args, "repeats", None) is not None:
-        if args.name != "lockstep" or args.repeats < 1:
-            raise UserInputError("--repeats: a count >= 1, only for `bench lockstep`")
+        if args.name not in side_by_side or args.repeats < 1:
+            raise UserInputError("--repeats: a count >= 1, only for `bench lockstep` and "
+                                 "`bench dashboard`")
         kwargs["repeats"] = args.repeats
     if getattr(args, "instructions", False):
         if args.name != "lockstep":

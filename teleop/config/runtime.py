@@ -49,6 +49,9 @@ class DashboardConfig:
     path: str = param("teleop.rrd", "file written in save mode")
     rate_hz: float = param(50.0, "rate at which services log to the dashboard", unit="Hz",
                            lo=1.0, hi=1000.0)
+    picture_rate_hz: float = param(
+        10.0, "rate at which the hand logs its drawing and pressure bars (about 2 ms of the "
+        "hand's loop each; its signals go at rate_hz)", unit="Hz", lo=0.1, hi=1000.0)
 
 
 @dataclass(frozen=True, slots=True)

@@ -81,13 +81,14 @@ def test_rrd_holds_one_recording_with_data_at_every_dashboard_path(
 
 @pytest.mark.network
 @pytest.mark.slow
-@pytest.mark.xfail(strict=False, reason=(
-    "start-up timing on this 2-core VM: in 2 of 2 CI runs of 2026-11-25 (also at dc373eb) "
-    "the hand began 1.2-1.8 s after the master (first sample past t0 + 0.8 s, or 130 of the "
-    "150 rows); it passes when run alone; the grasp and energy checks are held in lockstep "
-    "and by the 1-minute soak's audit"))
 def test_recordings_show_the_grasp_and_the_energy_balance(
         up_run: tuple[subprocess.CompletedProcess[str], Path, Path, float]) -> None:
+    """The run's three recordings: the operator closes, the hand grasps on time, the
+    operator feels it, the energy balances.  A non-strict xfail from 2026-11-25 to 11-29
+    (it failed in about 1 run of 4): the hand read its sensors up to 0.5 s late and dropped
+    deadlines while the dashboard (saved to a file here) logged from its loop; since the
+    dashboard's signals go as columns, its pictures at 10 Hz and its types set up before the
+    loop, the hand reads within ~30 ms (`teleop bench dashboard`)."""
     _, _, rec_dir, _ = up_run
     m = read_recording(rec_dir / "master.csv")
     c = read_recording(rec_dir / "controller.csv")
@@ -113,6 +114,11 @@ def test_recordings_show_the_grasp_and_the_energy_balance(
     assert before_h.sum() >= 1 and hold_h.sum() >= 20, (h.t_s[:3], t0)
     flex = h.column("proximal_angle_rad_f1") + h.column("distal_angle_rad_f1")
     assert flex[hold_h].mean() > flex[before_h].mean() + 0.2
+    # ... on time: the hand reads its sensors soon after each 25 ms deadline although the
+    # dashboard is saved (before 2026-11-29: p99 0.16-0.5 s, deadlines dropped; measured
+    # failing against that tree)
+    late = h.column("read_t_s") - h.t_s
+    assert np.percentile(late, 99) < 0.05 and late.max() < 0.25, np.percentile(late, [50, 99])
     pressure = np.max([h.column(f"pressure_f1_{j}") for j in range(9)], axis=0)
     assert pressure[hold_h].min() > 20.0 and pressure[before_h].max() < 20.0
     # the operator feels it: force displayed while closed on the object, none before

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from teleop.devices.base import HandReading
@@ -80,3 +81,48 @@ def test_blueprint_views_show_logged_paths() -> None:
             hits = [p for p in logged if p == prefix or (pat.endswith("/**")
                                                         and p.startswith(prefix + "/"))]
             assert hits, f"{view.name}: {expr!r} matches no logged path"
+
+
+def scalar_series(path: Path, entity: str) -> list[tuple[float, float]]:
+    """(time s, value) of every row at ``entity`` in a saved .rrd, in time order."""
+    import pyarrow as pa
+    from rerun.chunk import RrdReader
+
+    rows = []
+    for chunk in RrdReader(path).stream():
+        if chunk.is_static or chunk.entity_path.lstrip("/") != entity:
+            continue
+        batch = chunk.to_record_batch()
+        ns = batch.column("time").cast(pa.int64()).to_pylist()
+        values = batch.column("Scalars:scalars").to_pylist()
+        rows += [(t * 1e-9, v[0]) for t, v in zip(ns, values, strict=True)]
+    return sorted(rows)
+
+
+def test_signals_sent_as_columns_read_back_as_logged_one_by_one(tmp_path: Path) -> None:
+    """The services send their signals as columns every 0.2 s (``ScalarColumns``): the saved
+    recording holds every sample at its own time, as logging each at once does, and the last
+    ones arrive with the final flush.  Mutant watched failing: the columns sent without their
+    time index (every sample at the flush's time)."""
+    def run(out: Path, batched: bool) -> list[tuple[float, float]]:
+        rec = dash.open_stream("cols", "save", path=out, send_blueprint=False)
+        assert rec is not None
+        stream: dash.Stream = dash.ScalarColumns(rec, 0.2) if batched else rec
+        for k in range(25):
+            t = 0.02 * k
+            dash.log_master(stream, t, trigger_position_m=0.001 * k, displayed_force_n=1.0,
+                            tank_j=10.0 - 0.1 * k, port_in_j=0.1, port_out_j=0.05,
+                            delay_s=None)
+            if batched:
+                stream.flush_due(t)  # type: ignore[union-attr]
+        if batched:
+            stream.flush()  # type: ignore[union-attr]
+        rec.flush()
+        rec.disconnect()
+        return scalar_series(out, "master/tank_j")
+
+    one_by_one = run(tmp_path / "a.rrd", False)
+    columns = run(tmp_path / "b.rrd", True)
+    assert len(one_by_one) == 25 and len(columns) == 25
+    assert np.allclose(columns, one_by_one, rtol=0.0, atol=1e-9)
+    assert columns[-1] == pytest.approx((0.48, 7.6))
