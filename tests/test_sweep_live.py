@@ -42,13 +42,13 @@ def test_live_point_is_passive_and_stable_at_zero_delay() -> None:
 
 def test_a_live_loop_without_its_passivity_layer_is_caught_by_the_physics() -> None:
     """The mutant of the test above: the direct controller (no tanks, no passivity layer) at
-    zero delay.  Live it delivers more energy than the ports took (0.08 J in 4 s measured
+    zero delay, 3 s.  Live it delivers more energy than the ports took (0.08 J in 4 s measured
     2026-11-29; lockstep's 1 s run: 0.015 J, tests/services/data/sweep_direct_record.json);
     the ledgers hold no tank to judge, the physical audit reads it."""
     cfg = load_config()
     cfg = apply_overrides(cfg, cfg.sweep.scenario)
     cfg = replace(cfg, zenoh=replace(cfg.zenoh, endpoint=f"tcp/127.0.0.1:{free_port()}"))
-    s = run_live_point(point_config(cfg, SweepPoint("direct", 0.0, 0.0, 0.0, 1)), 4.0)
+    s = run_live_point(point_config(cfg, SweepPoint("direct", 0.0, 0.0, 0.0, 1)), 3.0)
     m = classify_run(s)
     assert m.passive_audit is False and m.audit_energy_generated_j > 0.005, m
     assert not m.passive
