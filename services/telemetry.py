@@ -145,12 +145,13 @@ class Telemetry:
 
     def _log(self, dash: Any, t: float, s: Sample, reading: HandReading | None) -> None:
         rec = self.cols
+        physics = self.audit_source() if self.audit_source is not None else None
         if isinstance(s, MasterSample):
             dash.log_master(rec, t, trigger_position_m=s.trigger_position_m,
                             displayed_force_n=s.displayed_force_n, tank_j=s.tank_j,
                             port_in_j=s.port_in_j, port_out_j=s.port_out_j,
                             delay_s=self._delays.get("MasterSample"),
-                            model_force_n=s.model_force_n)
+                            model_force_n=s.model_force_n, physics_j=physics)
             self._dropped_event(dash, t, "force commands", s.dropped)
         elif isinstance(s, ControllerSample):
             dash.log_controller(rec, t, setpoints_rad=s.setpoint_rad,
@@ -167,7 +168,7 @@ class Telemetry:
                 self._next_picture_s = t + self.picture_period_s
             dash.log_hand(rec, t, reading, tank_j=s.tank_j, port_in_j=s.port_in_j,
                           port_out_j=s.port_out_j, delay_s=self._delays.get("HandSample"),
-                          pictures=pictures)
+                          pictures=pictures, physics_j=physics)
             self._dropped_event(dash, t, "hand commands", s.dropped)
 
     def close(self) -> None:

@@ -6,6 +6,7 @@ services log into one recording (same application and recording id) under::
     master/trigger_position_m        master/displayed_force_n     master/tank_j
     master/model_force_n             controller/measured_force_n  (felt, rendered, true force)
     master/port_in_j, port_out_j     controller/setpoint_rad/f{1,2,3}
+    master/physics_{delivered,taken}_j, hand/physics_{delivered,taken}_j (simulated ports)
     controller/commanded_force_n     controller/energy_stored_j   hand/finger{1,2,3}/proximal_rad
     hand/finger{1,2,3}/distal_rad    hand/tank_j                  hand/port_in_j, port_out_j
     links/<link>/delay_s             hand/pressure (27 bars)      hand/drawing/*
@@ -42,6 +43,9 @@ DASHBOARD_PATHS: tuple[str, ...] = (
     "master/model_force_n", "controller/measured_force_n",
     *(f"hand/finger{i}/{j}" for i in (1, 2, 3) for j in ("proximal_rad", "distal_rad")),
     "hand/tank_j", "hand/port_in_j", "hand/port_out_j",
+    # the physical work at each simulated port (virtual operator, simulated hand), beside the
+    # controllers' books above
+    *(f"{side}/physics_{k}_j" for side in ("master", "hand") for k in ("delivered", "taken")),
     *(f"links/{link}/delay_s" for link in LINKS),
     "hand/pressure", "hand/drawing/links", "hand/drawing/tendon", "hand/drawing/sensors",
     "events",
@@ -74,6 +78,8 @@ def blueprint() -> rrb.Blueprint:
                                contents=["+ master/tank_j", "+ hand/tank_j",
                                          "+ master/port_in_j", "+ master/port_out_j",
                                          "+ hand/port_in_j", "+ hand/port_out_j",
+                                         *(f"+ {side}/physics_{k}_j" for side in ("master", "hand")
+                                           for k in ("delivered", "taken")),
                                          "+ controller/energy_stored_j"]),
             rrb.TimeSeriesView(name="achieved delay per link", origin="links"),
             rrb.BarChartView(name="pressure sensors (27)", origin="hand/pressure"),
@@ -194,6 +200,12 @@ def _scalar(rec: Stream, path: str, value: float) -> None:
             rec.log(path, rr.Scalars(value))
 
 
+def _physics(rec: Stream, side: str, physics_j: tuple[float, float] | None) -> None:
+    if physics_j is not None:
+        _scalar(rec, f"{side}/physics_delivered_j", physics_j[0])
+        _scalar(rec, f"{side}/physics_taken_j", physics_j[1])
+
+
 def log_rejects(rec: Stream, t_s: float, role: str,
                 by_reason: Sequence[tuple[str, int]]) -> None:
     """Cumulative counts of the messages ``role``'s bus rejected, one series per reason
@@ -205,11 +217,14 @@ def log_rejects(rec: Stream, t_s: float, role: str,
 
 def log_master(rec: Stream, t_s: float, *, trigger_position_m: float,
                displayed_force_n: float, tank_j: float, port_in_j: float, port_out_j: float,
-               delay_s: float | None, model_force_n: float = math.nan) -> None:
+               delay_s: float | None, model_force_n: float = math.nan,
+               physics_j: tuple[float, float] | None = None) -> None:
     """The master's signals; ``port_in_j``/``port_out_j`` are the cumulative energy taken
     from / delivered to the operator; ``delay_s`` is the achieved controller->master delay;
-    ``model_force_n`` the contact model the master renders locally (felt force)."""
+    ``model_force_n`` the contact model the master renders locally (felt force);
+    ``physics_j`` the virtual operator's physical work (delivered to it, taken from it)."""
     set_time(rec, t_s)
+    _physics(rec, "master", physics_j)
     _scalar(rec, "master/trigger_position_m", trigger_position_m)
     _scalar(rec, "master/displayed_force_n", displayed_force_n)
     _scalar(rec, "master/model_force_n", model_force_n)
@@ -264,10 +279,12 @@ def finger_drawing(proximal_rad: float, distal_rad: float, index: int
 
 def log_hand(rec: Stream, t_s: float, reading: HandReading, *, tank_j: float,
              port_in_j: float, port_out_j: float, delay_s: float | None,
-             pictures: bool = True) -> None:
+             pictures: bool = True, physics_j: tuple[float, float] | None = None) -> None:
     """The hand's state, pressures, drawing and energy; ``delay_s`` is controller->hand;
-    the drawing and the pressure bars only with ``pictures`` (they cost ~2 ms a call)."""
+    the drawing and the pressure bars only with ``pictures`` (they cost ~2 ms a call);
+    ``physics_j`` the simulated fingers' physical work on the object (delivered, taken)."""
     set_time(rec, t_s)
+    _physics(rec, "hand", physics_j)
     links, tendons, points, colors = [], [], [], []
     pressures: list[float] = []
     for i, f in enumerate(reading.fingers):

@@ -37,12 +37,13 @@ def test_all_dashboard_paths_hold_data(tmp_path: Path) -> None:
     for k in range(3):
         t = 0.02 * k
         dash.log_master(rec, t, trigger_position_m=0.01, displayed_force_n=1.0, tank_j=0.9,
-                        port_in_j=0.1, port_out_j=0.05, delay_s=0.01, model_force_n=0.9)
+                        port_in_j=0.1, port_out_j=0.05, delay_s=0.01, model_force_n=0.9,
+                        physics_j=(0.04, 0.1))
         dash.log_controller(rec, t, setpoints_rad=(1.0, 1.0, 1.0), commanded_force_n=1.0,
                             energy_stored_j=0.01, master_delay_s=0.01, hand_delay_s=0.02,
                             measured_force_n=1.1)
         dash.log_hand(rec, t, reading(), tank_j=1.0, port_in_j=0.2, port_out_j=0.1,
-                      delay_s=0.03)
+                      delay_s=0.03, physics_j=(0.1, 0.05))
         dash.log_event(rec, t, "master", "passivity layer limiting the force")
     rec.flush()
     rec.disconnect()
