@@ -345,7 +345,10 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
         s.start()
     tels = None
     if rec is not None:
-        tels = [Telemetry(s.role, rec, None, 0.0, cfg.dashboard.rate_hz) for s in services]
+        sources = {"master": m_audit, "hand": h_audit}  # the physics beside the books
+        tels = [Telemetry(s.role, rec, None, 0.0, cfg.dashboard.rate_hz, (),
+                          sources.get(s.role), cfg.dashboard.picture_rate_hz)
+                for s in services]
         for tel in tels:  # the live view of the role (a restarted service has a new one)
             tel.rejects_source = lambda r=tel.role: _rejects(ctx, r)
     report_every = max(1, n_master // 100)

@@ -43,13 +43,15 @@ DASHBOARD_PATHS: tuple[str, ...] = (
     "master/model_force_n", "controller/measured_force_n",
     *(f"hand/finger{i}/{j}" for i in (1, 2, 3) for j in ("proximal_rad", "distal_rad")),
     "hand/tank_j", "hand/port_in_j", "hand/port_out_j",
-    # the physical work at each simulated port (virtual operator, simulated hand), beside the
-    # controllers' books above
-    *(f"{side}/physics_{k}_j" for side in ("master", "hand") for k in ("delivered", "taken")),
     *(f"links/{link}/delay_s" for link in LINKS),
     "hand/pressure", "hand/drawing/links", "hand/drawing/tendon", "hand/drawing/sensors",
     "events",
 )
+
+#: the physical work at each simulated port (the virtual operator, the simulated hand), beside
+#: the controllers' books: data only where the port is simulated
+PHYSICS_PATHS: tuple[str, ...] = tuple(f"{side}/physics_{k}_j" for side in ("master", "hand")
+                                       for k in ("delivered", "taken"))
 
 # ReFlex finger geometry for drawing (m): proximal axle -> distal joint, distal link length,
 # tactile sensor positions along each link (reference/reflex-hardware.md)
@@ -78,8 +80,7 @@ def blueprint() -> rrb.Blueprint:
                                contents=["+ master/tank_j", "+ hand/tank_j",
                                          "+ master/port_in_j", "+ master/port_out_j",
                                          "+ hand/port_in_j", "+ hand/port_out_j",
-                                         *(f"+ {side}/physics_{k}_j" for side in ("master", "hand")
-                                           for k in ("delivered", "taken")),
+                                         *(f"+ {p}" for p in PHYSICS_PATHS),
                                          "+ controller/energy_stored_j"]),
             rrb.TimeSeriesView(name="achieved delay per link", origin="links"),
             rrb.BarChartView(name="pressure sensors (27)", origin="hand/pressure"),

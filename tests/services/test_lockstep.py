@@ -90,7 +90,7 @@ def test_runs_faster_than_real_time() -> None:
 def test_a_lockstep_run_can_be_logged_to_the_dashboard(tmp_path) -> None:  # noqa: ANN001
     from rerun.chunk import RrdReader
 
-    from teleop.viz.dashboard import DASHBOARD_PATHS, open_stream
+    from teleop.viz.dashboard import DASHBOARD_PATHS, PHYSICS_PATHS, open_stream
 
     out = tmp_path / "lockstep.rrd"
     rec = open_stream("lockstep-test", "save", path=out)
@@ -102,6 +102,9 @@ def test_a_lockstep_run_can_be_logged_to_the_dashboard(tmp_path) -> None:  # noq
     found = {c.entity_path.lstrip("/") for c in RrdReader(out).stream()
              if not c.is_static and c.num_rows > 0}
     assert not [p for p in DASHBOARD_PATHS if p not in found]
+    # the virtual operator's physics beside its books; the fake hand has none
+    assert [p for p in PHYSICS_PATHS if p in found] == ["master/physics_delivered_j",
+                                                        "master/physics_taken_j"]
 
 
 def test_default_backends_grasp_the_object_passively() -> None:

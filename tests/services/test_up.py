@@ -67,14 +67,14 @@ def test_rrd_holds_one_recording_with_data_at_every_dashboard_path(
         up_run: tuple[subprocess.CompletedProcess[str], Path, Path, float]) -> None:
     from rerun.chunk import RrdReader
 
-    from teleop.viz.dashboard import DASHBOARD_PATHS
+    from teleop.viz.dashboard import DASHBOARD_PATHS, PHYSICS_PATHS
 
     _, rrd, _, _ = up_run
     reader = RrdReader(rrd)
     assert len(reader.recordings()) == 1 and len(reader.blueprints()) == 1
     found = {ch.entity_path.lstrip("/") for ch in reader.stream()
              if not ch.is_static and ch.num_rows > 0}
-    missing = [p for p in DASHBOARD_PATHS if p not in found]
+    missing = [p for p in (*DASHBOARD_PATHS, *PHYSICS_PATHS) if p not in found]
     assert not missing, f"no data at {missing}"
     assert not rrd.with_name(rrd.name + ".parts").exists()  # parts merged and removed
 

@@ -48,7 +48,7 @@ def test_all_dashboard_paths_hold_data(tmp_path: Path) -> None:
     rec.flush()
     rec.disconnect()
     found = entity_paths(out)
-    missing = [p for p in dash.DASHBOARD_PATHS if p not in found]
+    missing = [p for p in (*dash.DASHBOARD_PATHS, *dash.PHYSICS_PATHS) if p not in found]
     assert not missing, f"no data at {missing}"
     assert "links/controller_to_master/delay_s" in found
 
@@ -68,7 +68,7 @@ def test_finger_drawing_keeps_link_lengths_and_curls_towards_the_palm() -> None:
 def test_blueprint_views_show_logged_paths() -> None:
     """Every view's origin and every ``+ path`` in its contents reaches a path the dashboard
     logs (a renamed signal would leave a view empty)."""
-    logged = [*dash.DASHBOARD_PATHS, "events", "rejects/hand/malformed"]
+    logged = [*dash.DASHBOARD_PATHS, *dash.PHYSICS_PATHS, "events", "rejects/hand/malformed"]
     views = dash.blueprint().root_container.contents
     assert len(views) == 8
     for view in views:
