@@ -32,7 +32,10 @@ from teleop.config import TeleopConfig
 
 #: spin before each deadline under SCHED_FIFO (3e-4 otherwise): a real-time thread's sleep
 #: overshoots by 10-43 us here, so the spin is rarely reached; at 1e-4 it cost each 1 kHz loop
-#: ~10 % of a core, which a 2-core machine's 40 Hz hand (lower priority) went without
+#: ~10 % of a core, which a 2-core machine's 40 Hz hand (lower priority) went without (with
+#: the dashboard saved, the hard operator on the block: its reads p99 0.34 s late at 1e-4,
+#: 8-18 ms at 3e-5).  The price: the 1 kHz loops' p99 lateness 0.1 -> 0.25-0.65 ms (a loop
+#: that is not spinning when its deadline comes may wait for the other's tick)
 REALTIME_SPIN_S = 3e-5
 REALTIME_FAST_HZ = 100.0  # loops this fast get the higher SCHED_FIFO priority (20, else 10)
 
