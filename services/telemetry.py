@@ -97,6 +97,8 @@ class Telemetry:
              reading: HandReading | None = None) -> None:
         """Record ``sample``; log it (at the dashboard rate) and ``events`` (always)."""
         t = self._t(sample.t_s)
+        # the backend's physical work now, for the recording and the dashboard alike
+        physics = self.audit_source() if self.audit_source is not None else None
         if self.record_path is not None:
             if self._writer is None:
                 cols = sample_columns(sample)
@@ -107,8 +109,8 @@ class Telemetry:
                 self._writer = RecordingWriter(self.record_path, cols, meta=self.meta)
             row = sample_row(sample)
             row[0] = t
-            if self.audit_source is not None:
-                row += self.audit_source()
+            if physics is not None:
+                row += physics
             for i in self._clock_cols:
                 row[i] -= self.epoch_s  # type: ignore[operator]
             self._writer.write(row)
@@ -128,7 +130,7 @@ class Telemetry:
         if t < self._next_log_s:
             return
         self._next_log_s = t + self.period_s
-        self._log(dash, t, sample, reading)
+        self._log(dash, t, sample, reading, physics)
         if self.rejects_source is not None:
             by_reason = self.rejects_source().by_reason
             if by_reason != self._rejects_logged:
@@ -143,9 +145,9 @@ class Telemetry:
                            f"dropped {total - before:.0f} {name} (total {total:.0f})", "WARN")
         self._dropped[name] = total
 
-    def _log(self, dash: Any, t: float, s: Sample, reading: HandReading | None) -> None:
+    def _log(self, dash: Any, t: float, s: Sample, reading: HandReading | None,
+             physics: tuple[float, float] | None) -> None:
         rec = self.cols
-        physics = self.audit_source() if self.audit_source is not None else None
         if isinstance(s, MasterSample):
             dash.log_master(rec, t, trigger_position_m=s.trigger_position_m,
                             displayed_force_n=s.displayed_force_n, tank_j=s.tank_j,

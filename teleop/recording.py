@@ -56,6 +56,14 @@ class Recording:
                                  f"{', '.join(self.columns)})") from None
         return self.data[:, idx]
 
+    def held(self, name: str, t_s: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Column ``name`` held from each sample to the next, read at the times ``t_s`` (NaN
+        before the first sample): another service's recording on this one's clock."""
+        idx = np.searchsorted(self.t_s, t_s, side="right") - 1
+        out = self.column(name)[np.clip(idx, 0, len(self.t_s) - 1)].astype(float)
+        out[idx < 0] = np.nan
+        return out
+
     def meta_value(self, key: str, default: str | None = None) -> str | None:
         """A metadata value from a ``# key: value`` comment."""
         for k, v in self.meta:

@@ -139,15 +139,6 @@ class PortAudit:
                 "ledger_gap_environment_j": self.ledger_gap_environment_j}
 
 
-def _held_at(rec: Recording, name: str, t: Array) -> Array:
-    """Column ``name`` of ``rec`` held from each sample to the next, read at ``t`` (NaN
-    before its first sample)."""
-    i = np.searchsorted(rec.t_s, t, side="right") - 1
-    out = rec.column(name)[np.clip(i, 0, None)].astype(float)
-    out[i < 0] = np.nan
-    return out
-
-
 def _has_audit(rec: Recording) -> bool:
     return all(rec.has(c) and bool(np.isfinite(rec.column(c)).any()) for c in AUDIT_COLUMNS)
 
@@ -161,7 +152,7 @@ def recorded_audit(master: Recording, hand: Recording, controller: Recording | N
         return None
     rho = float(energy_scale)
     t = hand.t_s
-    od, ot = (_held_at(master, c, t) for c in AUDIT_COLUMNS)
+    od, ot = (master.held(c, t) for c in AUDIT_COLUMNS)
     ed, et = (hand.column(c).astype(float) for c in AUDIT_COLUMNS)
     ok = np.isfinite(od) & np.isfinite(ot) & np.isfinite(ed) & np.isfinite(et)
     if not ok.any():

@@ -207,14 +207,6 @@ def read_run_dir(path: str | Path) -> RunRecordings:
     return RunRecordings(master, hand, recs["controller"], str(d))
 
 
-def _held(src: Recording, t: Array, name: str) -> Array:
-    """Column ``name`` of ``src`` sampled and held at ``t`` (NaN before its first sample)."""
-    idx = np.searchsorted(src.t_s, t, side="right") - 1
-    out = src.column(name)[np.clip(idx, 0, len(src.t_s) - 1)].astype(float)
-    out[idx < 0] = np.nan
-    return out
-
-
 def _spans(t: Array, on: NDArray[np.bool_]) -> list[tuple[float, float]]:
     """(start, duration) of every stretch where ``on`` holds (a sample lasts to the next)."""
     dt = np.diff(t, append=t[-1])
@@ -249,18 +241,18 @@ def judge_recorded_run(run: RunRecordings, threshold_m: float,
     run, and the recording gaps longer than ``gap_s``."""
     m, h, c = run.master, run.hand, run.controller
     t = m.t_s
-    pressure = np.column_stack([_held(h, t, f"pressure_f{i // 9 + 1}_{i % 9}")
+    pressure = np.column_stack([h.held(f"pressure_f{i // 9 + 1}_{i % 9}", t)
                                 for i in range(27)])
-    prox = np.column_stack([_held(h, t, f"proximal_angle_rad_f{i}") for i in (1, 2, 3)])
-    dist = np.column_stack([_held(h, t, f"distal_angle_rad_f{i}") for i in (1, 2, 3)])
+    prox = np.column_stack([h.held(f"proximal_angle_rad_f{i}", t) for i in (1, 2, 3)])
+    dist = np.column_stack([h.held(f"distal_angle_rad_f{i}", t) for i in (1, 2, 3)])
     trigger = m.column("trigger_position_m")
     grasps = curl_grasps(t, trigger, pressure, prox, dist, m.column("displayed_force_n"),
                          threshold_m, m.column("force_command_n")
                          if m.has("force_command_n") else None)
     closed = np.nan_to_num(trigger, nan=0.0) > threshold_m
-    stores = [("master tank", m.column("tank_j")), ("hand tank", _held(h, t, "tank_j"))]
+    stores = [("master tank", m.column("tank_j")), ("hand tank", h.held("tank_j", t))]
     if c is not None:
-        stores.append(("controller store", _held(c, t, "store_j")))
+        stores.append(("controller store", c.held("store_j", t)))
     recs = {"master": m, "hand": h, "controller": c}
     gaps = tuple(x for role, rec in recs.items() if rec is not None
                  for x in _gaps(role, rec, gap_s))

@@ -34,24 +34,15 @@ __all__ = ["run_live_point", "signals_from_recordings"]
 STARTUP_ALLOWANCE_S = 60.0
 
 
-def _held(src: Recording, t: Array, name: str) -> Array:
-    """Column ``name`` of ``src`` sampled and held at times ``t`` (NaN before its start)."""
-    ts = src.t_s
-    idx = np.searchsorted(ts, t, side="right") - 1
-    out = src.column(name)[np.clip(idx, 0, len(ts) - 1)].astype(float)
-    out[idx < 0] = np.nan
-    return out
-
-
 def _triple(src: Recording, t: Array, name: str) -> Array:
-    return np.column_stack([_held(src, t, f"{name}_f{i + 1}") for i in range(3)])
+    return np.column_stack([src.held(f"{name}_f{i + 1}", t) for i in range(3)])
 
 
 def signals_from_recordings(master: Recording, controller: Recording, hand: Recording,
                             cfg: TeleopConfig) -> RunSignals:
     """RunSignals from the three live recordings (master time base)."""
     t = master.t_s
-    pressure = np.column_stack([_held(hand, t, f"pressure_f{i // 9 + 1}_{i % 9}")
+    pressure = np.column_stack([hand.held(f"pressure_f{i // 9 + 1}_{i % 9}", t)
                                 for i in range(27)])
     m_tank = master.column("tank_j")
     initial = ledger_initial_j(master) + ledger_initial_j(hand) + ledger_initial_j(
@@ -64,16 +55,16 @@ def signals_from_recordings(master: Recording, controller: Recording, hand: Reco
         "pressure": pressure,
         "master_port_out_j": master.column("port_out_j"),
         "master_port_in_j": master.column("port_in_j"),
-        "hand_port_out_j": np.nan_to_num(_held(hand, t, "port_out_j")),
-        "hand_port_in_j": np.nan_to_num(_held(hand, t, "port_in_j")),
+        "hand_port_out_j": np.nan_to_num(hand.held("port_out_j", t)),
+        "hand_port_in_j": np.nan_to_num(hand.held("port_in_j", t)),
         "master_tank_j": m_tank,
-        "hand_tank_j": _held(hand, t, "tank_j"),
+        "hand_tank_j": hand.held("tank_j", t),
         "master_limited_count": master.column("limit_count"),
-        "hand_limited_count": _held(hand, t, "limit_count"),
+        "hand_limited_count": hand.held("limit_count", t),
         "dropped_force_command": master.column("dropped"),
-        "dropped_hand_command": _held(hand, t, "dropped"),
-        "dropped_master_state": _held(controller, t, "master_dropped"),
-        "dropped_hand_state": _held(controller, t, "hand_dropped"),
+        "dropped_hand_command": hand.held("dropped", t),
+        "dropped_master_state": controller.held("master_dropped", t),
+        "dropped_hand_state": controller.held("hand_dropped", t),
     }
     if master.has("trigger_position_m"):
         cols["trigger_position_m"] = master.column("trigger_position_m")
