@@ -185,6 +185,7 @@ def _soak_log(opts: ServiceOptions, role: str, rate_hz: float, now_s: float) -> 
 def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
     """Run one service until stopped; exit status."""
     from teleop.transport.clock import MonotonicClock
+    from teleop.transport.roster import checking_role_free
     from teleop.transport.zenoh_bus import ZenohBus
 
     role = opts.role
@@ -208,9 +209,16 @@ def run_service(cfg: TeleopConfig, opts: ServiceOptions) -> int:
     svc: Any = None
     stats: LoopStats | None = None
     try:
+        # a second service of a role already running in the session is refused before its
+        # device starts (a stray would starve the running services; docs/faults.md): asked
+        # while the backend is built (in teleop up the controller is not listening yet)
+        role_free = checking_role_free(cfg, role)
         # everything slow first (device start, imports, dashboard), the bus last, and its
         # liveliness token (peers take it as "ready to tick") only just before the wait
-        made = build_backend(role, cfg)
+        try:
+            made = build_backend(role, cfg)
+        finally:
+            role_free()
         if made is not None:
             made.start()
         backend = made  # released at the end only once started

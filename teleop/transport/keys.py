@@ -24,6 +24,7 @@ from teleop.messages import ForceCommand, HandCommand, HandState, MasterState
 
 ROLES: tuple[str, ...] = ("master", "controller", "hand")
 LIVELINESS_SIGNAL = "alive"
+ROSTER_SIGNAL = "roster"
 _NAME_RE = re.compile(r"^[A-Za-z0-9_.\-]+$")
 
 
@@ -102,6 +103,17 @@ def liveliness_key(session: str, role: str) -> str:
 def liveliness_pattern(session: str) -> str:
     """Key expression matching every service's liveliness token in ``session``."""
     return f"teleop/{check_session(session)}/*/{LIVELINESS_SIGNAL}"
+
+
+def roster_key(session: str, role: str) -> str:
+    """The key of the service ``role``'s roster queryable: ``teleop/<session>/<role>/roster``
+    (who it sees running; :mod:`teleop.transport.roster`)."""
+    return f"teleop/{check_session(session)}/{check_role(role)}/{ROSTER_SIGNAL}"
+
+
+def roster_pattern(session: str) -> str:
+    """Key expression matching every service's roster queryable in ``session``."""
+    return f"teleop/{check_session(session)}/*/{ROSTER_SIGNAL}"
 
 
 def role_from_key(key: str) -> str | None:

@@ -15,6 +15,9 @@
   disappears as soon as its TCP link drops.  When a peer (re)appears, the sequence filter
   of its signals is reset so a restarted sender is accepted (from its first ``seq``; a
   ``seq`` too far ahead of the last accepted one is otherwise dropped as ``seq_jump``).
+* Roster: a queryable ``teleop/<session>/<role>/roster`` answers a starting service with this
+  role and the roles whose tokens it sees, so a second service of a running role is refused
+  at its start (:mod:`teleop.transport.roster`).
 * ``close()`` undeclares subscribers, publishers and the token and closes the session; it
   must be called (zenoh sessions keep the process alive otherwise).
 * GIL: zenoh delivers samples through a Python callback, which needs the GIL; a service
@@ -60,7 +63,9 @@ from teleop.transport.keys import (
     liveliness_key,
     liveliness_pattern,
     role_from_key,
+    roster_key,
 )
+from teleop.transport.roster import encode_reply
 from teleop.transport.safe_decoder import SafeDecoder
 
 _STAMP = struct.Struct("<d")
@@ -153,6 +158,9 @@ class ZenohBus:
                 self.announce()
             self._live_sub = self._session.liveliness().declare_subscriber(
                 liveliness_pattern(session), self._on_liveliness, history=True)
+            # who runs here, for a service about to start (teleop.transport.roster)
+            self._roster = self._session.declare_queryable(roster_key(session, role),
+                                                           self._on_roster)
         except BaseException:
             self._session.close()
             raise
@@ -217,6 +225,10 @@ class ZenohBus:
             self._reset_from.add(role)
         else:
             self._alive.discard(role)
+
+    def _on_roster(self, query: zenoh.Query) -> None:
+        if not self._closed:
+            query.reply(query.key_expr, encode_reply(self.role, tuple(self._alive)))
 
     # -- Bus ---------------------------------------------------------------------------
     def publish(self, signal: str, msg: Message) -> None:
@@ -295,6 +307,7 @@ class ZenohBus:
         for sub in self._subscribers:
             sub.undeclare()
         self._live_sub.undeclare()
+        self._roster.undeclare()
         for pub in self._publishers.values():
             pub.undeclare()
         if self._token is not None:

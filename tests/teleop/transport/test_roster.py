@@ -1,0 +1,125 @@
+"""A second service of a running role is refused at its start (teleop.transport.roster).
+
+The answers' format and the refusal are pure; the rest runs real zenoh sessions on 127.0.0.1:
+the controller listening, a master connecting (the ``teleop up`` star), and a newcomer's probe
+connecting to the controller, which alone can see the running master in peer mode.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from teleop.config import load_config
+from teleop.config.schema import TeleopConfig
+from teleop.transport import roster
+from teleop.transport.peer import free_tcp_endpoint
+from teleop.transport.roster import RosterReply, decode_reply, encode_reply, refusal
+from teleop.transport.zenoh_bus import ZenohBus
+from tests.mutants import fails
+from tests.teleop.transport.test_zenoh_bus import wait_for
+
+
+def test_an_answer_reads_back_as_sent_with_the_repliers_own_role() -> None:
+    rep = decode_reply(encode_reply("controller", ("master", "hand")))
+    assert rep == RosterReply("controller", ("controller", "hand", "master"))
+    assert decode_reply(encode_reply("hand", ())) == RosterReply("hand", ("hand",))
+
+
+@pytest.mark.parametrize("payload", [
+    b"", b"{", b"[1, 2]", b'{"role": "master"}', b'{"role": "boss", "running": []}',
+    b'{"role": "master", "running": "master"}', b"\xff\xfe", b'{"running": ["master"]}',
+])
+def test_anything_else_is_no_answer(payload: bytes) -> None:
+    assert decode_reply(payload) is None
+
+
+def test_unknown_roles_in_an_answer_are_ignored() -> None:
+    rep = decode_reply(b'{"role": "controller", "running": ["observer", "master", 3]}')
+    assert rep == RosterReply("controller", ("master",))
+
+
+def test_refused_only_when_an_answer_has_the_role() -> None:
+    ctl = RosterReply("controller", ("controller", "master"))
+    assert refusal("hand", "s", [ctl]) is None
+    assert refusal("master", "s", []) is None
+    why = refusal("master", "s", [ctl])
+    assert why is not None and "a master is already running in session 's'" in why
+    assert "the controller sees it" in why and "\n" not in why
+    own = refusal("master", "s", [RosterReply("master", ("master",))])
+    assert own is not None and "it answered" in own
+
+
+# -- real zenoh --------------------------------------------------------------------------
+
+def _cfg(endpoint: str, session: str = "t") -> TeleopConfig:
+    return load_config(None, [f"zenoh.endpoint={endpoint}", f"session.name={session}"])
+
+
+@pytest.fixture
+def endpoint() -> str:
+    return free_tcp_endpoint()
+
+
+@pytest.fixture
+def controller(endpoint: str) -> Iterator[ZenohBus]:
+    bus = ZenohBus("controller", session="t", listen=[endpoint], connect=[])
+    yield bus
+    bus.close()
+
+
+def _stray_master_refused(endpoint: str, controller: ZenohBus) -> None:
+    master = ZenohBus("master", session="t", listen=[], connect=[endpoint])
+    try:
+        wait_for(lambda: controller.alive("master"), 5.0, "the controller to see the master")
+        cfg = _cfg(endpoint)
+        t0 = time.monotonic()
+        replies = roster.probe(cfg, "master")
+        took_s = time.monotonic() - t0
+        why = refusal("master", "t", replies)
+        assert why is not None, f"a second master was not refused (answers: {replies})"
+        assert "the controller sees it" in why
+        assert took_s < 0.4  # answered as soon as connected, not after the whole window
+        assert refusal("hand", "t", roster.probe(cfg, "hand")) is None  # no hand runs
+        # the same session name elsewhere is another session
+        assert roster.probe(_cfg(endpoint, "other"), "master") == ()
+    finally:
+        master.close()
+    # the master gone (a crash drops its link the same way): a restart is not refused
+    wait_for(lambda: not controller.alive("master"), 5.0, "the master's token to go")
+    assert refusal("master", "t", roster.probe(_cfg(endpoint), "master")) is None
+
+
+@pytest.mark.network
+def test_a_second_master_is_refused_and_a_restart_after_it_is_not(
+        endpoint: str, controller: ZenohBus) -> None:
+    _stray_master_refused(endpoint, controller)
+
+
+@pytest.mark.network
+def test_a_roster_that_names_only_its_replier_would_let_the_stray_in(
+        endpoint: str, controller: ZenohBus, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Kept mutant: in peer mode the newcomer reaches only the controller, so the answer must
+    carry the roles the controller sees, not only its own."""
+    monkeypatch.setattr(roster, "encode_reply", lambda role, running: encode_reply(role, ()))
+    monkeypatch.setattr("teleop.transport.zenoh_bus.encode_reply",
+                        lambda role, running: encode_reply(role, ()))
+    assert fails(lambda: _stray_master_refused(endpoint, controller))
+
+
+@pytest.mark.network
+def test_with_nobody_listening_the_probe_gives_up_after_its_window(endpoint: str) -> None:
+    t0 = time.monotonic()
+    assert roster.probe(_cfg(endpoint), "master") == ()
+    assert time.monotonic() - t0 < roster.CONNECT_WINDOW_S + 0.5
+
+
+def test_a_role_with_no_connect_endpoint_asks_nobody() -> None:
+    """The controller listens on the endpoint and connects nowhere: a second controller
+    fails to bind it, in the bus's own words."""
+    cfg = load_config(None, ["zenoh.endpoint=tcp/127.0.0.1:9"])
+    t0 = time.monotonic()
+    assert roster.probe(cfg, "controller") == ()
+    assert time.monotonic() - t0 < 0.05
