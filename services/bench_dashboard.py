@@ -17,8 +17,6 @@ of the runs' p50, p90, p99, max), ``<tree>_late_over_50ms_pct`` and ``<tree>_row
 
 from __future__ import annotations
 
-import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -33,25 +31,20 @@ DURATION_S = 20.0
 
 def _run(tree: Path, duration_s: float) -> dict[str, float]:
     """One ``teleop up`` run of ``tree``; the hand's read lateness figures."""
+    from teleop.analysis.up_child import run_up
     from teleop.recording import read_recording
 
     port = free_port()
     with tempfile.TemporaryDirectory(prefix="teleop-bench-dash-") as tmp:
-        cmd = [sys.executable, "-m", "teleop.cli", "up", "--duration", f"{duration_s:g}",
-               "--dashboard", f"save:{tmp}/d.rrd", "--record", f"{tmp}/rec",
-               "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}",
-               "--set", f"session.name=benchdash{port}"]
-        env = dict(os.environ, PYTHONPATH=str(tree))
-        proc = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True,
-                              timeout=duration_s + 120, check=False)
-        if proc.returncode != 0:
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
-            raise RuntimeError(f"bench dashboard: teleop up in {tree} exited "
-                               f"{proc.returncode}: {tail[0]}")
+        run_up(["--duration", f"{duration_s:g}", "--dashboard", f"save:{tmp}/d.rrd",
+                "--record", f"{tmp}/rec", "--set", f"zenoh.endpoint=tcp/127.0.0.1:{port}",
+                "--set", f"session.name=benchdash{port}"],
+               timeout_s=duration_s + 120, what="bench dashboard", tree=tree)
         hand = read_recording(Path(tmp) / "rec" / "hand.csv")
     late = hand.column("read_t_s") - hand.t_s
     late = late[np.isfinite(late)]
-    due = (hand.t_s[-1] - hand.t_s[0]) * 40.0 + 1.0
+    rate_hz = float(hand.meta_value("rate_hz") or 40.0)  # the hand's configured rate
+    due = (hand.t_s[-1] - hand.t_s[0]) * rate_hz + 1.0
     return {"p50": float(np.median(late)) * 1e3, "p90": float(np.percentile(late, 90)) * 1e3,
             "p99": float(np.percentile(late, 99)) * 1e3, "max": float(late.max()) * 1e3,
             "over50": 100.0 * float(np.mean(late > 0.05)), "rows": 100.0 * len(hand) / due}

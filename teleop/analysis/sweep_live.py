@@ -10,8 +10,6 @@ included (:mod:`teleop.analysis.port_audit`: the run is judged passive by the ph
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
@@ -21,9 +19,9 @@ from numpy.typing import NDArray
 from teleop.analysis.port_audit import ledger_initial_j, recorded_audit
 from teleop.analysis.stability import RunSignals
 from teleop.analysis.sweep_signals import signals_from_columns
+from teleop.analysis.up_child import run_up
 from teleop.config import TeleopConfig
 from teleop.config.loader import render_toml
-from teleop.errors import DeviceError
 from teleop.recording import Recording, read_recording
 
 Array = NDArray[np.float64]
@@ -83,18 +81,9 @@ def run_live_point(cfg: TeleopConfig, duration_s: float) -> RunSignals:
         conf = Path(tmp) / "point.toml"
         conf.write_text(render_toml(cfg), encoding="utf-8")
         rec_dir = Path(tmp) / "rec"
-        cmd = [sys.executable, "-m", "teleop.cli", "up", "--config", str(conf),
-               "--duration", f"{duration_s:g}", "--record", str(rec_dir), "--dashboard", "off"]
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, check=False,
-                                  timeout=duration_s + STARTUP_ALLOWANCE_S)
-        except subprocess.TimeoutExpired:
-            raise DeviceError(f"live sweep point: teleop up did not finish within "
-                                 f"{duration_s + STARTUP_ALLOWANCE_S:.0f} s") from None
-        if proc.returncode != 0:
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
-            raise DeviceError(f"live sweep point: teleop up exited with status "
-                                 f"{proc.returncode}: {tail[0]}")
+        run_up(["--config", str(conf), "--duration", f"{duration_s:g}", "--record",
+                str(rec_dir), "--dashboard", "off"],
+               timeout_s=duration_s + STARTUP_ALLOWANCE_S, what="live sweep point")
         recs = [read_recording(rec_dir / f"{role}.csv") for role in
                 ("master", "controller", "hand")]
     return signals_from_recordings(recs[0], recs[1], recs[2], cfg)
