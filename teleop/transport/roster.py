@@ -40,8 +40,17 @@ from teleop.transport.keys import ROLES, check_role, roster_pattern
 CONNECT_WINDOW_S = 0.5
 #: after the first peer is connected, how long its answer may take to come (3-6 ms here)
 ANSWER_GRACE_S = 0.05
+#: how often the probe retries a connect that was refused (the listener not up yet)
+RETRY_MS = 25
 _GET_TIMEOUT_S = 0.2
 _POLL_S = 0.002
+
+
+def _every_answer() -> Any:
+    """Keep every reply (zenoh's default consolidation keeps one per key)."""
+    import zenoh
+
+    return zenoh.ConsolidationMode.NONE
 
 
 @dataclass(frozen=True, slots=True)
@@ -91,7 +100,8 @@ def ask(session: Any, session_name: str, connected: Callable[[], bool],
     pattern = roster_pattern(session_name)
     while True:
         replies = []
-        for r in session.get(pattern, timeout=_GET_TIMEOUT_S):
+        for r in session.get(pattern, timeout=_GET_TIMEOUT_S,
+                             consolidation=_every_answer()):
             ok = r.ok
             if ok is not None and (rep := decode_reply(ok.payload.to_bytes())) is not None:
                 replies.append(rep)
@@ -118,11 +128,15 @@ def probe(cfg: Any, role: str, window_s: float = CONNECT_WINDOW_S) -> tuple[Rost
     connect = role_endpoints(role, cfg.zenoh)[1]
     if not connect:
         return ()
-    conf = zenoh_config(cfg.zenoh.mode, [], connect, cfg.zenoh.multicast_scouting)
-    conf.insert_json5("scouting/delay", "0")  # ask as soon as connected (ask polls)
-    for key, value in secure_zenoh_config(cfg, role, listening=False).items():
-        conf.insert_json5(key, value)
     try:
+        conf = zenoh_config(cfg.zenoh.mode, [], connect, cfg.zenoh.multicast_scouting)
+        conf.insert_json5("scouting/delay", "0")  # ask as soon as connected (ask polls)
+        # retry a refused connect within the window (zenoh's first retry is after ~1 s)
+        conf.insert_json5("connect/retry", json.dumps({
+            "period_init_ms": RETRY_MS, "period_max_ms": RETRY_MS,
+            "period_increase_factor": 1.0}))
+        for key, value in secure_zenoh_config(cfg, role, listening=False).items():
+            conf.insert_json5(key, value)
         session = zenoh.open(conf)
     except zenoh.ZError:
         return ()  # the bus itself reports a session that cannot open, in its own words

@@ -159,8 +159,8 @@ class ZenohBus:
             self._live_sub = self._session.liveliness().declare_subscriber(
                 liveliness_pattern(session), self._on_liveliness, history=True)
             # who runs here, for a service about to start (teleop.transport.roster)
-            self._roster = self._session.declare_queryable(roster_key(session, role),
-                                                           self._on_roster)
+            self._roster_key = roster_key(session, role)
+            self._roster = self._session.declare_queryable(self._roster_key, self._on_roster)
         except BaseException:
             self._session.close()
             raise
@@ -228,7 +228,8 @@ class ZenohBus:
 
     def _on_roster(self, query: zenoh.Query) -> None:
         if not self._closed:
-            query.reply(query.key_expr, encode_reply(self.role, tuple(self._alive)))
+            # on our own key: the query's is a pattern, and zenoh keeps one answer per key
+            query.reply(self._roster_key, encode_reply(self.role, tuple(self._alive)))
 
     # -- Bus ---------------------------------------------------------------------------
     def publish(self, signal: str, msg: Message) -> None:

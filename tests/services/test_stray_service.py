@@ -69,6 +69,7 @@ def test_a_stray_master_is_refused_and_the_running_one_carries_on(tmp_path: Path
         common += ("--set", f"zenoh.endpoint=tcp/127.0.0.1:{free_port()}")
     ctl, ctl_lines = _spawn("controller", common)
     master, master_lines = _spawn("master", common)
+    hand: subprocess.Popen[str] | None = None
     try:
         _wait_line(master_lines, "master: waiting for", 60.0)  # its token is out
         t0 = time.monotonic()
@@ -78,15 +79,24 @@ def test_a_stray_master_is_refused_and_the_running_one_carries_on(tmp_path: Path
         err = stray.stderr.strip()
         assert "Traceback" not in err and len(err.splitlines()) == 1
         assert "a master is already running in session 'stray'" in err
-        assert "ready master" not in stray.stdout  # refused before anything started
+        assert "ready master" not in stray.stdout
         assert took_s < 30.0
-        # another role is not refused: a hand starts and the controller starts ticking
-        hand = teleop("run", "hand", *common, "--duration", "1", timeout=120)
-        assert hand.returncode == 0, hand.stdout + hand.stderr
-        assert master.poll() is None and ctl.poll() is None  # the first two still run
+        # another role is not refused: the hand starts, and the controller starts ticking
+        hand, hand_lines = _spawn("hand", common)
+        _wait_line(ctl_lines, "status ", 60.0)  # the controller's once-a-second line
+        # a second hand is refused before its device starts: its backend, a servo bus on a
+        # port that does not exist, would fail its start with a device error instead
+        stray_hand = teleop("run", "hand", *common, "--duration", "5",
+                            "--set", "hand.backend=dynamixel",
+                            "--set", "hand.dynamixel.port=/nonexistent/ttyUSB9", timeout=60)
+        assert stray_hand.returncode == 2, stray_hand.stdout + stray_hand.stderr
+        assert "a hand is already running in session 'stray'" in stray_hand.stderr
+        assert "ttyUSB9" not in stray_hand.stderr
+        assert all(p.poll() is None for p in (master, ctl, hand))  # the first three run on
     finally:
-        for p in (master, ctl):
+        running = [p for p in (master, hand, ctl) if p is not None]
+        for p in running:
             if p.poll() is None:
                 p.send_signal(signal.SIGINT)
-        codes = [p.wait(timeout=15) for p in (master, ctl)]
-    assert codes == [0, 0]
+        codes = [p.wait(timeout=15) for p in running]
+    assert codes == [0] * len(running)

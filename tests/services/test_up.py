@@ -156,6 +156,7 @@ def test_dashboard_mode_resolution() -> None:
     ("run", "controller", "--dashboard", "save:/proc/x.rrd", "--duration", "1"),
     ("up", "--dashboard", "save:/proc/x.rrd", "--duration", "1"),
     ("up", "--dashboard", "off", "--set", "zenoh.endpoint=tcp/192.0.2.1:7447"),  # remote
+    ("run", "master", "--set", "zenoh.endpoint=bogus", "--duration", "1"),  # roster probe
 ])
 def test_user_mistakes_are_one_line_and_exit_2(args: tuple[str, ...]) -> None:
     proc = teleop(*args, timeout=60)

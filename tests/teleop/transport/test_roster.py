@@ -7,6 +7,7 @@ connecting to the controller, which alone can see the running master in peer mod
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Iterator
 
@@ -15,7 +16,7 @@ import pytest
 from teleop.config import load_config
 from teleop.config.schema import TeleopConfig
 from teleop.transport import roster
-from teleop.transport.peer import free_tcp_endpoint
+from teleop.transport.peer import PeerProcess, free_tcp_endpoint
 from teleop.transport.roster import RosterReply, decode_reply, encode_reply, refusal
 from teleop.transport.zenoh_bus import ZenohBus
 from tests.mutants import fails
@@ -114,6 +115,75 @@ def test_with_nobody_listening_the_probe_gives_up_after_its_window(endpoint: str
     t0 = time.monotonic()
     assert roster.probe(_cfg(endpoint), "master") == ()
     assert time.monotonic() - t0 < roster.CONNECT_WINDOW_S + 0.5
+
+
+@pytest.mark.network
+def test_a_listener_coming_up_within_the_window_is_asked(endpoint: str) -> None:
+    """The probe retries a refused connect within its window (zenoh's own first retry comes
+    after about a second, too late: then the window did nothing)."""
+    got: list[tuple[RosterReply, ...]] = []
+    probing = threading.Thread(target=lambda: got.append(roster.probe(_cfg(endpoint), "hand")))
+    t0 = time.monotonic()
+    probing.start()
+    time.sleep(0.15)
+    late = ZenohBus("controller", session="t", listen=[endpoint], connect=[])
+    try:
+        probing.join(10.0)
+    finally:
+        late.close()
+    assert got and [r.replier for r in got[0]] == ["controller"], got
+    assert time.monotonic() - t0 < roster.CONNECT_WINDOW_S
+
+
+def _every_answer_counts(endpoint: str) -> None:
+    second = free_tcp_endpoint()
+    controller = ZenohBus("controller", session="t", listen=[endpoint], connect=[])
+    hand = ZenohBus("hand", session="t", listen=[second], connect=[endpoint])
+    try:
+        wait_for(lambda: controller.alive("hand"), 5.0, "the controller to see the hand")
+        cfg = load_config(None, [f"zenoh.endpoint={endpoint}", "session.name=t",
+                                 f"zenoh.connect=['{second}']"])
+        replies = roster.probe(cfg, "master")
+        assert sorted(r.replier for r in replies) == ["controller", "hand"], replies
+    finally:
+        hand.close()
+        controller.close()
+
+
+@pytest.mark.network
+def test_every_service_reached_answers_and_every_answer_counts(endpoint: str) -> None:
+    """The probe reaches the controller and a hand that also listens: two answers."""
+    _every_answer_counts(endpoint)
+
+
+@pytest.mark.network
+def test_answers_on_the_querys_pattern_under_default_consolidation_collapse(
+        endpoint: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Kept mutant: answers on the query's own key expression (a pattern, the same for all)
+    with zenoh's default consolidation (one answer per key) leave one of the two."""
+    import zenoh
+
+    def on_roster(self: ZenohBus, query: zenoh.Query) -> None:
+        query.reply(query.key_expr, encode_reply(self.role, tuple(self._alive)))
+
+    monkeypatch.setattr(ZenohBus, "_on_roster", on_roster)
+    monkeypatch.setattr(roster, "_every_answer", lambda: zenoh.ConsolidationMode.DEFAULT)
+    assert fails(lambda: _every_answer_counts(endpoint))
+
+
+@pytest.mark.network
+def test_a_master_killed_is_not_there_for_its_restart(endpoint: str,
+                                                      controller: ZenohBus) -> None:
+    """A crash (SIGKILL: its link just drops) frees the role before any restart could ask
+    (a restart takes longer than the 0.2 s allowed here to start Python)."""
+    master = PeerProcess("idle", ["--role", "master", "--session", "t", "--connect", endpoint])
+    try:
+        wait_for(lambda: controller.alive("master"), 10.0, "the controller to see the master")
+        assert refusal("master", "t", roster.probe(_cfg(endpoint), "master")) is not None
+    finally:
+        master.kill()
+    time.sleep(0.2)
+    assert refusal("master", "t", roster.probe(_cfg(endpoint), "master")) is None
 
 
 def test_a_role_with_no_connect_endpoint_asks_nobody() -> None:
