@@ -86,8 +86,9 @@ def refusal(role: str, session: str, replies: Iterable[RosterReply]) -> str | No
         return None
     who = ("it answered" if seen == [role] else
            f"the {' and the '.join(s for s in seen if s != role)} sees it")
-    return (f"a {role} is already running in session {session!r} ({who}): stop it first, "
-            f"or run this one with another session.name")
+    return (f"a {role} is already running in session {session!r} ({who}): stop it first "
+            f"(a crashed one's link times out within zenoh's 10 s lease), or run this one "
+            f"with another session.name")
 
 
 def ask(session: Any, session_name: str, connected: Callable[[], bool],
