@@ -65,6 +65,29 @@ class GraspStats:
     measured_force_n: float = math.nan
 
 
+#: grasps after the first that :meth:`GraspSeries.after_first` compares the first with
+EARLY_GRASPS = 3
+
+
+@dataclass(frozen=True, slots=True)
+class AfterFirst:
+    """The first grasp against the next few, and the rest against those (one measure)."""
+
+    measure: str  # "peak_pressure" or "closure_rad"
+    early: int  # how many grasps after the first make the early best
+    early_best_over_first: float
+    later_weakest_over_early_best: float
+    later_weakest_index: int
+
+    def describe(self) -> str:
+        """One line for the report."""
+        what = "peak pressure" if self.measure == "peak_pressure" else "closure"
+        return (f"after the first ({what}): the best of the next {self.early} "
+                f"{self.early_best_over_first:.2f} of the first; the weakest later grasp "
+                f"(grasp {self.later_weakest_index}) {self.later_weakest_over_early_best:.2f} "
+                f"of that best")
+
+
 @dataclass(frozen=True, slots=True)
 class GraspSeries:
     """All complete grasps of a run."""
@@ -112,6 +135,26 @@ class GraspSeries:
             return min(gs, key=lambda g: g.pressure_ratio)
         finite = [g for g in gs if math.isfinite(g.closure_ratio)]
         return min(finite, key=lambda g: g.closure_ratio) if finite else None
+
+    def after_first(self, early: int = EARLY_GRASPS) -> AfterFirst | None:
+        """The first grasp against the next ``early`` and the rest against those, by peak
+        pressure (by closure when the pressures give no ratio): a first grasp out of line
+        with the next ones (blind under a long delay, or an overshoot while the rendered
+        contact model still fits a stiffening object) reads as a loss, or hides one, in the
+        ratios over the first alone.  None with fewer than ``early + 2`` grasps."""
+        gs = self.grasps
+        if len(gs) < early + 2:
+            return None
+        measure = "peak_pressure"
+        vals = [g.peak_pressure if math.isfinite(g.pressure_ratio) else math.nan for g in gs]
+        if not all(math.isfinite(v) for v in vals):
+            measure, vals = "closure_rad", [g.closure_rad for g in gs]
+            if not all(math.isfinite(v) for v in vals):
+                return None
+        best = max(vals[1:1 + early])
+        weakest = min(range(1 + early, len(gs)), key=lambda k: vals[k])
+        return AfterFirst(measure, early, _ratio(best, vals[0]), _ratio(vals[weakest], best),
+                          gs[weakest].index)
 
     def rebased(self, ref: int) -> GraspSeries:
         """The same grasps with every ratio over grasp ``ref``'s (a position in

@@ -170,6 +170,12 @@ class RecordedRunReport:
                 "min_pressure_ratio": g.min_pressure_ratio,
                 "min_closure_ratio": g.min_closure_ratio, "min_felt_ratio": g.min_felt_ratio,
                 "felt_not_held": [x.index for x in g.felt_not_held],
+                "after_first": (None if (a := g.after_first()) is None else
+                                {"measure": a.measure, "early": a.early,
+                                 "early_best_over_first": a.early_best_over_first,
+                                 "later_weakest_over_early_best":
+                                     a.later_weakest_over_early_best,
+                                 "later_weakest_grasp": a.later_weakest_index}),
                 "grasps": rows,
                 "gap_bound_s": self.gap_bound_s,
                 "gaps": [{"role": x.role, "at_s": x.at_s, "gap_s": x.gap_s} for x in self.gaps],
@@ -299,6 +305,9 @@ def format_recorded_run(r: RecordedRunReport, every: int = 1) -> str:
         ref = "first" if k == 0 else f"grasp {k}"
         lines.append(f"weakest over {ref}: {pressure}, closure {j.min_closure_ratio:.2f}, "
                      f"felt force {j.min_felt_ratio:.2f}")
+        after = j.after_first()
+        if after is not None:
+            lines.append(after.describe())
         ghost = j.felt_not_held
         if ghost:
             shown = ", ".join(str(x.index) for x in ghost[:12]) + (", ..." if len(ghost) > 12

@@ -138,3 +138,46 @@ def test_felt_not_held_only_where_the_pressure_asked_for_less_than_was_felt() ->
                      g(4, 0.3, 3.99), g(5, 0.6, 1.0)))
     # 1 asked for 8 N; 3 for half of the 8 N felt (the boundary); 5 held 0.6 of the pressure
     assert [x.index for x in s.felt_not_held] == [2, 4]
+
+
+def _series_of(peaks: list[float], closures: list[float] | None = None):  # noqa: ANN202
+    from teleop.analysis.grasps import GraspSeries, GraspStats
+
+    closures = closures or [0.9] * len(peaks)
+    return GraspSeries(tuple(
+        GraspStats(index=i, t_start_s=4.5 * i, t_end_s=4.5 * i + 4.5, peak_pressure=p,
+                   closure_rad=c, felt_force_n=8.0,
+                   pressure_ratio=p / peaks[0] if peaks[0] > 0 else math.nan,
+                   closure_ratio=c / closures[0], felt_ratio=1.0)
+        for i, (p, c) in enumerate(zip(peaks, closures, strict=True))))
+
+
+def test_a_first_grasp_out_of_line_is_told_apart_from_a_loss() -> None:
+    """The soft operator on the block at 100 ms in lockstep: the first grasp overshoots
+    (226), the rest hold at 180-199. Over the first alone that reads 0.80."""
+    s = _series_of([226, 180, 186, 186, 191, 193, 196, 190, 199])
+    a = s.after_first()
+    assert s.min_pressure_ratio == pytest.approx(180 / 226)
+    assert a is not None and a.measure == "peak_pressure" and a.early == 3
+    assert a.early_best_over_first == pytest.approx(186 / 226)
+    assert a.later_weakest_over_early_best == pytest.approx(190 / 186)
+    assert a.later_weakest_index == 7
+    assert "the best of the next 3 0.82 of the first" in a.describe()
+
+
+def test_a_collapse_after_the_first_grasp_is_not_hidden() -> None:
+    """The original defect (tanks empty from the second grasp on): the early best itself
+    is a sliver of the first, and the later grasps fall further still."""
+    a = _series_of([675, 5, 4, 3, 3, 2]).after_first()
+    assert a is not None
+    assert a.early_best_over_first == pytest.approx(5 / 675)
+    assert a.later_weakest_over_early_best == pytest.approx(2 / 5)
+
+
+def test_without_pressures_the_closure_is_compared_and_short_runs_give_nothing() -> None:
+    s = _series_of([0.0] * 6, [1.2, 0.7, 0.68, 0.7, 0.69, 0.66])  # no cells: ratios nan
+    a = s.after_first()
+    assert a is not None and a.measure == "closure_rad"
+    assert a.early_best_over_first == pytest.approx(0.7 / 1.2)
+    assert a.later_weakest_over_early_best == pytest.approx(0.66 / 0.7)
+    assert _series_of([600, 600, 600, 600]).after_first() is None  # needs early + 2 grasps

@@ -25,7 +25,8 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
                hand_gap: tuple[float, float] | None = None,
                peaks: tuple[float, ...] = PEAKS,
                commands: tuple[float, ...] | None = None) -> None:
-    t = np.arange(0.0, 20.0, 0.01) + 3.0  # services start after the launcher's epoch
+    span_s = 5.0 * len(peaks)  # one grasp every 5 s
+    t = np.arange(0.0, span_s, 0.01) + 3.0  # services start after the launcher's epoch
     if master_gap is not None:  # the master's process stalled: no rows in (a, b)
         t = t[(t <= master_gap[0]) | (t >= master_gap[1])]
     phase = (t - 3.0) % 5.0
@@ -38,7 +39,7 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
               "displayed_force_n": np.where(closed, 8.0, 0.0), "tank_j": tank,
               "watchdog": np.zeros_like(t)}
     if commands is not None:  # the controller's measured-force command, per grasp
-        master["force_command_n"] = np.where(closed, np.array(commands)[np.clip(k, 0, 3)],
+        master["force_command_n"] = np.where(closed, np.array(commands)[np.clip(k, 0, len(commands) - 1)],
                                              0.0)
     if drop:
         master.pop(drop)
@@ -46,7 +47,7 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
         if master_meta is None else master_meta
     write_recording(d / "master.csv", Recording.from_columns(master, meta))
 
-    th = np.arange(0.0, 20.0, 0.025) + 3.0
+    th = np.arange(0.0, span_s, 0.025) + 3.0
     if hand_gap is not None:  # the hand's process stalled: no rows in (a, b)
         th = th[(th <= hand_gap[0]) | (th >= hand_gap[1])]
     ph = (th - 3.0) % 5.0
@@ -55,7 +56,7 @@ def _write_run(d: Path, *, master_meta: tuple[tuple[str, str], ...] | None = Non
     hand: dict[str, np.ndarray] = {"t_s": th}
     for i in range(27):
         hand[f"pressure_f{i // 9 + 1}_{i % 9}"] = np.where(
-            holding & (i == 4), np.array(peaks)[np.clip(kh, 0, 3)], 0.0)
+            holding & (i == 4), np.array(peaks)[np.clip(kh, 0, len(peaks) - 1)], 0.0)
     for f in (1, 2, 3):
         hand[f"proximal_angle_rad_f{f}"] = np.where(holding, 0.5, 0.0)
         hand[f"distal_angle_rad_f{f}"] = np.where(holding, 0.4, 0.0)
@@ -158,6 +159,21 @@ def test_cli_floor_and_json(run_dir: Path, capsys: pytest.CaptureFixture[str]) -
     d = json.loads(capsys.readouterr().out)
     assert d["grasp_count"] == 4 and d["min_pressure_ratio"] == pytest.approx(0.5)
     assert d["grasp_threshold_m"] == THRESHOLD_M
+    assert d["after_first"] is None  # four grasps: too few to set the first against three
+
+
+def test_the_first_against_the_next_three_in_the_report(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An overshooting first grasp: 0.83 over the first, the later ones hold (1.00)."""
+    _write_run(tmp_path, peaks=(720.0, 600.0, 590.0, 600.0, 600.0, 598.0))
+    assert main(["grasps", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert ("after the first (peak pressure): the best of the next 3 0.83 of the first; "
+            "the weakest later grasp (grasp 5) 1.00 of that best") in out
+    assert main(["grasps", str(tmp_path), "--json", "-"]) == 0
+    a = json.loads(capsys.readouterr().out)["after_first"]
+    assert a["early_best_over_first"] == pytest.approx(600 / 720, rel=0.02)
+    assert a["later_weakest_grasp"] == 5
 
 
 def test_a_grasp_a_recording_gap_interrupts_is_listed_not_judged(
