@@ -84,8 +84,9 @@ def refusal(role: str, session: str, replies: Iterable[RosterReply]) -> str | No
     seen = sorted({r.replier for r in replies if role in r.running})
     if not seen:
         return None
-    who = ("it answered" if seen == [role] else
-           f"the {' and the '.join(s for s in seen if s != role)} sees it")
+    others = [s for s in seen if s != role]
+    who = ("it answered" if not others else
+           f"the {' and the '.join(others)} {'sees' if len(others) == 1 else 'see'} it")
     return (f"a {role} is already running in session {session!r} ({who}): stop it first "
             f"(a crashed one's link times out within zenoh's 10 s lease), or run this one "
             f"with another session.name")

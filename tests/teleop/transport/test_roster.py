@@ -51,6 +51,9 @@ def test_refused_only_when_an_answer_has_the_role() -> None:
     assert "the controller sees it" in why and "\n" not in why
     own = refusal("master", "s", [RosterReply("master", ("master",))])
     assert own is not None and "it answered" in own
+    two = refusal("master", "s", [ctl, RosterReply("hand", ("hand", "master")),
+                                  RosterReply("master", ("master",))])
+    assert two is not None and "(the controller and the hand see it)" in two
 
 
 # -- real zenoh --------------------------------------------------------------------------
