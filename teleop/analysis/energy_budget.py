@@ -18,6 +18,8 @@ from typing import Any
 
 import numpy as np
 
+from teleop.analysis.grasps import after_first
+
 __all__ = ["GraspBudget", "grasp_budget", "format_budget"]
 
 
@@ -66,7 +68,8 @@ def grasp_budget(r: Any, cycle_s: float) -> tuple[GraspBudget, ...]:
 
 
 def format_budget(rows: tuple[GraspBudget, ...]) -> str:
-    """A text table of the rows."""
+    """A text table of the rows, then the weakest grasp over the first and the first against
+    the next three (:func:`teleop.analysis.grasps.after_first`)."""
     head = (f"{'grasp':>5} {'operator J':>11} {'object J':>10} {'hand ledger J':>14} "
             f"{'master ledger J':>16} {'stores J':>9} {'peak p':>7}")
     lines = [head, "-" * len(head)]
@@ -74,4 +77,10 @@ def format_budget(rows: tuple[GraspBudget, ...]) -> str:
         lines.append(f"{b.index:>5} {b.operator_net_j:>+11.4f} {b.object_net_j:>+10.4f} "
                      f"{b.hand_ledger_net_j:>+14.3f} {b.master_ledger_net_j:>+16.4f} "
                      f"{b.stores_change_j:>+9.3f} {b.peak_pressure:>7.0f}")
+    peaks = [b.peak_pressure for b in rows]
+    if peaks and peaks[0] > 0:
+        lines.append(f"weakest over the first (peak pressure): {min(peaks) / peaks[0]:.2f}")
+    after = after_first(peaks, [b.index for b in rows], "peak_pressure")
+    if after is not None:
+        lines.append(after.describe())
     return "\n".join(lines)

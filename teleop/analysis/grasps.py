@@ -20,6 +20,7 @@ Example::
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
@@ -88,6 +89,18 @@ class AfterFirst:
                 f"of that best")
 
 
+def after_first(values: Sequence[float], indices: Sequence[int], measure: str,
+                early: int = EARLY_GRASPS) -> AfterFirst | None:
+    """:class:`AfterFirst` of one measure of successive grasps (grasp numbers ``indices``);
+    None with fewer than ``early + 2`` grasps or any value not finite."""
+    if len(values) < early + 2 or not all(math.isfinite(v) for v in values):
+        return None
+    best = max(values[1:1 + early])
+    weakest = min(range(1 + early, len(values)), key=lambda k: values[k])
+    return AfterFirst(measure, early, _ratio(best, values[0]), _ratio(values[weakest], best),
+                      indices[weakest])
+
+
 @dataclass(frozen=True, slots=True)
 class GraspSeries:
     """All complete grasps of a run."""
@@ -143,18 +156,10 @@ class GraspSeries:
         contact model still fits a stiffening object) reads as a loss, or hides one, in the
         ratios over the first alone.  None with fewer than ``early + 2`` grasps."""
         gs = self.grasps
-        if len(gs) < early + 2:
-            return None
-        measure = "peak_pressure"
         vals = [g.peak_pressure if math.isfinite(g.pressure_ratio) else math.nan for g in gs]
-        if not all(math.isfinite(v) for v in vals):
-            measure, vals = "closure_rad", [g.closure_rad for g in gs]
-            if not all(math.isfinite(v) for v in vals):
-                return None
-        best = max(vals[1:1 + early])
-        weakest = min(range(1 + early, len(gs)), key=lambda k: vals[k])
-        return AfterFirst(measure, early, _ratio(best, vals[0]), _ratio(vals[weakest], best),
-                          gs[weakest].index)
+        idx = [g.index for g in gs]
+        return (after_first(vals, idx, "peak_pressure", early)
+                or after_first([g.closure_rad for g in gs], idx, "closure_rad", early))
 
     def rebased(self, ref: int) -> GraspSeries:
         """The same grasps with every ratio over grasp ``ref``'s (a position in

@@ -37,6 +37,22 @@ def test_cycles_split_the_cumulative_flows() -> None:
         assert b.peak_pressure == 26.0
 
 
+def test_the_table_ends_with_the_weakest_grasp_and_the_first_against_the_next_three() -> None:
+    from teleop.analysis.energy_budget import GraspBudget, format_budget
+
+    def row(k: int, peak: float) -> GraspBudget:
+        return GraspBudget(k, 4.5 * k, 4.5 * k + 4.5, 0.0, 0.0, 0.0, 0.0, 0.0, peak)
+
+    peaks = (226.0, 180.0, 186.0, 186.0, 191.0, 190.0)  # the soft operator's block at 100 ms
+    text = format_budget(tuple(row(k + 1, p) for k, p in enumerate(peaks)))
+    assert "weakest over the first (peak pressure): 0.80" in text
+    assert ("after the first (peak pressure): the best of the next 3 0.82 of the first; "
+            "the weakest later grasp (grasp 6) 1.02 of that best") in text
+    short = format_budget(tuple(row(k + 1, 600.0) for k in range(3)))
+    assert "after the first" not in short and "weakest over the first (peak pressure): 1.00" \
+        in short
+
+
 def test_bad_cycle_is_refused() -> None:
     with pytest.raises(ValueError):
         grasp_budget(_fake(), 0.0)
