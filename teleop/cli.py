@@ -22,6 +22,7 @@ import sys
 from collections.abc import Sequence
 from typing import NoReturn
 
+from teleop.commands.common import check_outputs
 from teleop.errors import DeviceError, UserInputError
 
 #: Subcommand modules, in the order ``teleop --help`` lists them.
@@ -60,6 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(list(argv) if argv is not None else None)
     try:
+        check_outputs(args)  # before any work: results are never computed and then lost
         return int(args.run(args) or 0)
     except UserInputError as exc:
         print(f"teleop {args.command}: error: {exc}", file=sys.stderr)

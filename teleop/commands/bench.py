@@ -15,7 +15,7 @@ import importlib
 from collections.abc import Callable
 from typing import Any
 
-from teleop.commands.common import add_json_option, check_output_path, info, write_json
+from teleop.commands.common import add_json_option, info, write_json
 from teleop.errors import UserInputError
 
 #: Benchmark name -> "module:function" (lazily imported).
@@ -63,7 +63,6 @@ def _load(name: str) -> Callable[[], dict[str, Any]]:
 def run(args: argparse.Namespace) -> int:
     """Run one benchmark and print/write its figures."""
     fn = _load(args.name)
-    check_output_path(args.json_path, "JSON")
     kwargs: dict[str, Any] = {}
     side_by_side = ("lockstep", "dashboard")
     if getattr(args, "reference", None) is not None:

@@ -27,8 +27,26 @@ def add_config_options(p: argparse.ArgumentParser) -> None:
 
 def add_json_option(p: argparse.ArgumentParser) -> None:
     """``--json PATH`` ('-' for stdout)."""
-    p.add_argument("--json", dest="json_path", default=None, metavar="PATH",
-                   help="write results as JSON to PATH ('-' for stdout)")
+    add_output_option(p, "--json", what="JSON", dest="json_path", default=None,
+                      metavar="PATH", help="write results as JSON to PATH ('-' for stdout)")
+
+
+def add_output_option(p: argparse.ArgumentParser, *flags: str, what: str,
+                      **kwargs: Any) -> None:
+    """An option naming a file the command writes (``what`` in its error): registered so
+    that :func:`check_outputs` tries it before the command runs, whatever the command."""
+    action = p.add_argument(*flags, **kwargs)
+    known = p.get_default("output_paths") or ()
+    p.set_defaults(output_paths=(*known, (action.dest, what)))
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Every output file the parsed command was given (:func:`add_output_option`) checked
+    with :func:`check_output_path`: a long run fails in one line before it starts, not after
+    its results are computed (``teleop budget --seconds 600 --json X`` once ran its ten
+    minutes and then found X unwritable)."""
+    for dest, what in getattr(args, "output_paths", ()):
+        check_output_path(getattr(args, dest, None), what)
 
 
 def config_from_args(args: argparse.Namespace) -> TeleopConfig:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from teleop.commands.common import (
     add_json_option,
-    check_output_path,
+    add_output_option,
     info,
     nonneg_float,
     write_json,
@@ -61,12 +61,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--validate", type=Path, default=None, metavar="REC",
                    help="held-out recording: report NRMSE of both models on it")
     add_json_option(p)
-    p.add_argument("--write-params", type=Path, default=None, metavar="FILE",
-                   help="--model finger: write the refined finger parameters and the effects "
-                   "found as TOML that teleop sim and the simulated hand load "
-                   "(--set hand.sim.model=FILE)")
-    p.add_argument("--plot", type=Path, default=None, metavar="PNG",
-                   help="write a plot: measured vs nominal vs augmented, residual, windows")
+    add_output_option(p, "--write-params", what="--write-params", type=Path, default=None,
+                      metavar="FILE",
+                      help="--model finger: write the refined finger parameters and the "
+                      "effects found as TOML that teleop sim and the simulated hand load "
+                      "(--set hand.sim.model=FILE)")
+    add_output_option(p, "--plot", what="plot", type=Path, default=None, metavar="PNG",
+                      help="write a plot: measured vs nominal vs augmented, residual, windows")
     p.set_defaults(run=run)
 
 
@@ -88,11 +89,9 @@ def run(args: argparse.Namespace) -> int:
     from teleop.errors import RecordingError, UserInputError
     from teleop.recording import read_recording
 
-    if args.write_params is not None:
-        if args.model != "finger":
-            raise UserInputError("--write-params: only --model finger has parameters the "
-                                 "simulation loads")
-        check_output_path(args.write_params, "--write-params")
+    if args.write_params is not None and args.model != "finger":
+        raise UserInputError("--write-params: only --model finger has parameters the "
+                             "simulation loads")
     if args.model == "finger":
         try:
             from sim.finger_diagnose import diagnose_finger  # type: ignore[import-not-found]

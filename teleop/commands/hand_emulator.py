@@ -18,7 +18,6 @@ import sys
 from teleop.commands.common import (
     add_config_options,
     add_json_option,
-    check_output_path,
     config_from_args,
     nonneg_float,
     positive_float,
@@ -119,7 +118,6 @@ def _check(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     """Serve the emulated board until Ctrl-C / SIGTERM or ``--duration``."""
     _check(args)
-    check_output_path(args.json_path, "JSON")
     cfg = config_from_args(args)
     from sim.hand_emulator import BoardParams, BrainBoardModel
     from sim.hand_emulator_faults import BoardFaults

@@ -15,6 +15,7 @@ The service prints ``ready <role>`` when its bus is up, then runs until Ctrl-C (
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from teleop.commands.common import (
     add_config_options,
@@ -81,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
 
     cfg = config_from_args(args)
     check_service_dashboard(args.dashboard or "off")
+    if args.record is not None:  # the recording opens at the first row: fail before the wait
+        check_output_path(Path(args.record) / f"{args.role}.csv", "recordings")
     opts = ServiceOptions(role=args.role, duration_s=args.duration,
                           dashboard=args.dashboard or "off", record_dir=args.record,
                           recording_id=args.recording_id, epoch_s=args.epoch,

@@ -16,7 +16,7 @@ import math
 from teleop.commands.common import (
     add_config_options,
     add_json_option,
-    check_output_path,
+    add_output_option,
     config_from_args,
     info,
 )
@@ -45,7 +45,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="weight experiment: tendon force in N (default 9.8)")
     p.add_argument("--units", default="100", metavar="U",
                    help="pull-unloaded: motor input in servo units (default 100)")
-    p.add_argument("--out", default=None, metavar="PATH", help="write the recording CSV here")
+    add_output_option(p, "--out", what="the recording", default=None, metavar="PATH",
+                      help="write the recording CSV here")
     p.add_argument("--effect", action="append", default=[], metavar="NAME=VALUE",
                    help="add a physical effect to the simulated truth (repeatable)")
     p.add_argument("--duration", default=None, metavar="S", help="simulated time in s")
@@ -79,8 +80,6 @@ def run(args: argparse.Namespace) -> int:
         rate_hz=_number(args.rate_hz, "--rate-hz"), noise=args.noise, seed=args.seed)
     check_spec(spec)
     effects = parse_effects(args.effect)
-    check_output_path(args.out, "the recording")
-    check_output_path(args.json_path, "JSON")
     cfg = config_from_args(args)
     params = default_finger_params(cfg.hand.sim.calibration)
     if cfg.hand.sim.model:  # refined by teleop diagnose --write-params; --effect adds to it

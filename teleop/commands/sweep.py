@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 from teleop.commands.common import (
     add_config_options,
     add_json_option,
-    check_output_path,
+    add_output_option,
     config_from_args,
     nonneg_float,
     positive_float,
@@ -69,9 +69,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--refine", type=int, default=None, metavar="N",
                    help="bisection runs that narrow each controller's largest stable delay "
                    "(default: sweep.refine_steps)")
-    p.add_argument("--plot", default=None, metavar="PNG", help="write the sweep plot here")
-    p.add_argument("--rerun", default=None, metavar="PATH",
-                   help="log every run's signals to this .rrd file")
+    add_output_option(p, "--plot", what="plot", default=None, metavar="PNG",
+                      help="write the sweep plot here")
+    add_output_option(p, "--rerun", what="rerun log", default=None, metavar="PATH",
+                      help="log every run's signals to this .rrd file")
     p.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     p.add_argument("--grid", choices=("full", "reduced"), default=None,
                    help="robustness grid instead of the delay sweep: operator style x object x "
@@ -295,9 +296,6 @@ def run(args: argparse.Namespace) -> int:
     if workers < 0 or refine < 0 or (args.workers is not None and args.workers < 1):
         raise UserInputError("--jobs must be >= 1 and --refine >= 0")
     workers = workers or os.cpu_count() or 1
-    check_output_path(args.json_path, "JSON")  # fail before the runs, not after them
-    check_output_path(args.plot, "plot")
-    check_output_path(args.rerun, "rerun log")
     if args.grid or args.endurance:
         if (args.rerun or args.delays or args.losses or args.refine is not None
                 or args.jitter is not None):
