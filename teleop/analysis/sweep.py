@@ -108,6 +108,7 @@ class SweepResult:
     duration_s: float
     wall_s: float
     notes: tuple[str, ...] = field(default=())
+    interrupted: bool = False  # stopped by Ctrl-C: ``runs`` are the ones finished by then
 
     def grid_runs(self) -> tuple[SweepRun, ...]:
         """The grid runs (without the bisection runs)."""
@@ -122,6 +123,7 @@ class SweepResult:
             "measured_bracket_s": {c: [lo, hi] for c, lo, hi in self.measured_bracket_s},
             "mode": self.mode, "seed": self.seed, "duration_s": self.duration_s,
             "wall_s": self.wall_s, "notes": list(self.notes),
+            "interrupted": self.interrupted,
         }
 
 
@@ -256,8 +258,8 @@ class _Pool:
         return [r for r in results if r is not None]
 
     def close(self) -> None:
-        if self._ex is not None:
-            self._ex.shutdown()
+        if self._ex is not None:  # (after Ctrl-C: the runs not yet started are dropped)
+            self._ex.shutdown(cancel_futures=True)
 
 
 def default_runner(mode: str) -> PointRunner:
@@ -313,8 +315,13 @@ def run_delay_sweep(
         if progress is not None:
             progress(len(done_runs), total, run)
 
-    runs = _schedule(workers, runner, cfg, points, controllers, to_refine, losses,
-                     refine_steps, duration_s, jitter_s, seed, criteria, keep_signals, done)
+    runs, stop = until_interrupted(
+        lambda: _schedule(workers, runner, cfg, points, controllers, to_refine, losses,
+                          refine_steps, duration_s, jitter_s, seed, criteria, keep_signals,
+                          done),
+        done_runs, total)
+    if stop is not None:
+        runs = [r for r in runs if not r.refine]
     refined = [r for r in done_runs if r.refine]
     loss0 = 0.0 if 0.0 in losses else None
     brackets = [] if loss0 is None else [
@@ -326,7 +333,21 @@ def run_delay_sweep(
                              r.point.delay_s))
     measured = tuple((c, lo) for c, lo, _ in brackets)
     return SweepResult(tuple(runs), tuple(predicted), measured, tuple(brackets), mode, seed,
-                       duration_s, time.perf_counter() - t0)
+                       duration_s, time.perf_counter() - t0, () if stop is None else (stop,),
+                       stop is not None)
+
+
+def until_interrupted(work: Callable[[], list[SweepRun]], done_runs: Sequence[SweepRun],
+                      planned: int) -> tuple[list[SweepRun], str | None]:
+    """``(work(), None)``; on Ctrl-C (KeyboardInterrupt) the runs finished by then
+    (``done_runs``, which the work's ``done`` callback fills) and a note saying so, so a long
+    sweep's finished runs are reported and written, not lost.  The runs in flight are
+    dropped: each is a whole simulated run or nothing."""
+    try:
+        return work(), None
+    except KeyboardInterrupt:
+        return list(done_runs), (f"interrupted (Ctrl-C) after {len(done_runs)} of {planned} "
+                                 "runs: the report and its files hold those runs only")
 
 
 def _bisect(bracket: tuple[float, float], steps: Sequence[SweepRun]) -> tuple[float, float]:

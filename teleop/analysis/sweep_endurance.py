@@ -35,6 +35,7 @@ from teleop.analysis.sweep import (
     SweepRun,
     _Pool,
     point_config,
+    until_interrupted,
 )
 from teleop.analysis.sweep_objects import object_name
 from teleop.config import TeleopConfig
@@ -93,14 +94,19 @@ def run_endurance(cfg: TeleopConfig, controllers: Sequence[str], runner: Enduran
 
     pool = _Pool(workers)
     try:
-        runs = pool.map(_endurance_one, [(runner, cfg, p, 60.0 * minutes, criteria)
-                                         for p in points], done)
+        runs, stop = until_interrupted(
+            lambda: pool.map(_endurance_one, [(runner, cfg, p, 60.0 * minutes, criteria)
+                                              for p in points], done),
+            done_runs, len(points))
     finally:
         pool.close()
+    order = {p: i for i, p in enumerate(points)}
+    runs.sort(key=lambda r: order[r.point])
     note = (f"endurance: {minutes:g} simulated minutes of repeated grasps per run "
             f"({style} operator, {obj}), loss {loss:.0%} on both links")
     return SweepResult(tuple(runs), (), (), (), "lockstep", seed, 60.0 * minutes,
-                       time.perf_counter() - t0, (note,))
+                       time.perf_counter() - t0, (note,) if stop is None else (note, stop),
+                       stop is not None)
 
 
 _GROWTH_ONLY = " (growth only: every hold shorter than the round trip)"

@@ -27,6 +27,7 @@ from teleop.analysis.sweep import (
     SweepResult,
     SweepRun,
     run_points,
+    until_interrupted,
 )
 from teleop.analysis.sweep_objects import OBJECTS, OPERATORS
 from teleop.config import TeleopConfig
@@ -92,13 +93,18 @@ def run_grid(cfg: TeleopConfig, spec: GridSpec, controllers: Sequence[str], runn
         if progress is not None:
             progress(len(done_runs), len(points), run)
 
-    runs = run_points(runner, cfg, points, spec.duration_s, criteria, workers, done)
+    runs, stop = until_interrupted(
+        lambda: run_points(runner, cfg, points, spec.duration_s, criteria, workers, done),
+        done_runs, len(points))
+    order = {p: i for i, p in enumerate(points)}
+    runs.sort(key=lambda r: order[r.point])
     note = (f"grid: {len(spec.operators)} operators x {len(spec.objects)} objects x "
             f"{len(spec.delays_s)} delays x {len(spec.losses)} losses x {len(spec.jitters)} "
-            f"jitters x {len(controllers)} controllers = {len(runs)} runs, "
+            f"jitters x {len(controllers)} controllers = {len(points)} runs, "
             f"{spec.duration_s:g} s each (lengthened for long delays)")
     return SweepResult(tuple(runs), (), (), (), "lockstep", seed, spec.duration_s,
-                       time.perf_counter() - t0, (note,))
+                       time.perf_counter() - t0, (note,) if stop is None else (note, stop),
+                       stop is not None)
 
 
 def _share(runs: Sequence[SweepRun], key: str) -> str:

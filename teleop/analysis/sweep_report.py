@@ -34,7 +34,7 @@ def result_from_json(doc: dict[str, Any]) -> SweepResult:
                        tuple(doc.get("measured_max_stable_delay_s", {}).items()), brackets,
                        doc.get("mode", "lockstep"), int(doc.get("seed", 0)),
                        float(doc.get("duration_s", 0.0)), float(doc.get("wall_s", 0.0)),
-                       tuple(doc.get("notes", ())))
+                       tuple(doc.get("notes", ())), bool(doc.get("interrupted", False)))
 
 
 def format_table(result: SweepResult) -> str:

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from teleop.analysis.direct_limit import DirectPrediction
     from teleop.analysis.grasps import GraspSeries
     from teleop.analysis.stability import RunSignals
-    from teleop.analysis.sweep import SweepRun
+    from teleop.analysis.sweep import SweepResult, SweepRun
     from teleop.config import TeleopConfig
 
 
@@ -257,12 +257,22 @@ def _run_special(args: argparse.Namespace, cfg: TeleopConfig, controllers: tuple
         print(format_endurance(result), file=out)
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s ({workers} workers)", file=out)
     write_json(args.json_path, result.to_json())
-    if args.plot and args.grid:
+    if args.plot and args.grid and result.runs:
         from teleop.analysis.sweep_heatmap import plot_heatmaps
 
         for path in plot_heatmaps(result, args.plot):
             print(f"heat map: {path}", file=out)
-    return 0
+    return _status(result, args)
+
+
+def _status(result: SweepResult, args: argparse.Namespace) -> int:
+    """0, or 130 (as for Ctrl-C) after an interrupted sweep wrote what it had."""
+    if not result.interrupted:
+        return 0
+    print(f"teleop sweep: interrupted; the {len(result.runs)} finished runs are reported"
+          + (f" and in {args.json_path}" if args.json_path not in (None, "-") else ""),
+          file=sys.stderr)
+    return 130
 
 
 def run(args: argparse.Namespace) -> int:
@@ -331,12 +341,12 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(result), file=out)
     print(f"{len(result.runs)} runs in {result.wall_s:.1f} s ({args.mode})", file=out)
     write_json(args.json_path, result.to_json())
-    if args.plot:
+    if args.plot and result.runs:
         from teleop.analysis.sweep_plot import plot_sweep
 
         print(f"plot: {plot_sweep(result, args.plot)}", file=out)
-    if args.rerun:
+    if args.rerun and result.runs:
         from teleop.analysis.sweep_rerun import log_sweep
 
         print(f"rerun log: {log_sweep(result, args.rerun)}", file=out)
-    return 0
+    return _status(result, args)
