@@ -305,7 +305,8 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                  watchdogs: bool = True,
                  progress: Callable[[float], None] | None = None,
                  rec: Any | None = None,
-                 hook: Callable[[float, LockstepContext], None] | None = None
+                 hook: Callable[[float, LockstepContext], None] | None = None,
+                 stop: Callable[[], bool] | None = None
                  ) -> LockstepResult:
     """Run master, controller and hand in lockstep for ``duration_s`` of virtual time.
 
@@ -314,7 +315,9 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
     off when False; ``progress(fraction)`` is called about 100 times; ``rec`` (a
     ``rerun.RecordingStream``) gets the run logged like the live dashboard, in virtual time;
     ``hook(t_s, ctx)`` is called before each time step with a :class:`LockstepContext`
-    (fault injection: kill or restart a service).
+    (fault injection: kill or restart a service); ``stop()`` (asked after every master row)
+    ends the run early when it returns True: the result then covers the time reached
+    (``duration_s`` says how much), every row whole (a command's Ctrl-C, say).
     """
     cfg = _seeded(cfg, seed)
     clock = VirtualClock(0.0)
@@ -386,6 +389,9 @@ def run_lockstep(cfg: TeleopConfig, duration_s: float, *, seed: int | None = Non
                 rows.row(m_sample, last_c, last_h, c_fresh, h_fresh, audit())
                 if progress is not None and rows.n % report_every == 0:
                     progress(rows.n / n_master)
+                if stop is not None and stop():
+                    duration_s = t
+                    break
     finally:
         for s in services:
             if s is not None:

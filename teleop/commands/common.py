@@ -8,6 +8,8 @@ import math
 import os
 import signal
 import sys
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -125,6 +127,61 @@ def nonneg_float(text: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"{text!r} must be a finite number >= 0")
     return value
+
+
+class FractionProgress:
+    """A one-line progress bar on stderr for a run that reports the fraction done:
+    ``label``, percent, elapsed and estimated remaining wall time (nothing when disabled)."""
+
+    def __init__(self, label: str, enabled: bool = True) -> None:
+        self.label, self.enabled = label, enabled and sys.stderr is not None
+        self.t0 = time.perf_counter()
+        self.shown = False
+
+    def __call__(self, fraction: float) -> None:
+        if not self.enabled:
+            return
+        elapsed = time.perf_counter() - self.t0
+        eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else 0.0
+        fill = int(30 * min(max(fraction, 0.0), 1.0))
+        sys.stderr.write(f"\r[{'#' * fill}{'.' * (30 - fill)}] {fraction:4.0%} {elapsed:5.0f}s "
+                         f"eta {eta:4.0f}s  {self.label}  ")
+        sys.stderr.flush()
+        self.shown = True
+
+    def finish(self) -> None:
+        if self.shown:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            self.shown = False
+
+
+class FirstInterrupt:
+    """Within ``with``: the first Ctrl-C (SIGINT) only sets :attr:`asked`, so a long run
+    can end at a whole step and report what it has; a second one raises KeyboardInterrupt
+    as usual.  Outside the main thread (no signal handlers there) it does nothing."""
+
+    def __init__(self) -> None:
+        self.asked = False
+        self._old: Any = None
+
+    def __call__(self) -> bool:
+        return self.asked
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.asked:
+            raise KeyboardInterrupt
+        self.asked = True
+
+    def __enter__(self) -> FirstInterrupt:
+        if threading.current_thread() is threading.main_thread():
+            self._old = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+            self._old = None
 
 
 def serve_until_stopped(serve: Callable[[], None]) -> None:

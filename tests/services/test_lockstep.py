@@ -140,3 +140,23 @@ def test_controller_death_mid_grasp_hand_holds_and_force_ramps_out() -> None:
     assert np.all(r.master_force_desired_n[r.t_s > 2.01] == 0.0)
     assert r.watchdog_trips >= 2
     assert np.all(r.energy_margin_j >= -1e-9)
+
+
+def test_a_run_stopped_early_is_the_same_run_cut_at_the_time_reached(
+        base: LockstepResult) -> None:
+    """``stop`` (a command's Ctrl-C) ends the run at a whole master row: the result is the
+    uninterrupted run's first rows, every series the same length, ``duration_s`` the time
+    reached."""
+    asked = [0]
+
+    def stop() -> bool:
+        asked[0] += 1
+        return asked[0] >= 1500
+
+    cfg = load_config(None, ["master.virtual.repeat=false"])
+    cut = run_lockstep(cfg, 4.0, seed=3, hand=FakeHand(contact_rad=CONTACT_RAD), stop=stop)
+    assert cut.t_s.size == 1500 and cut.duration_s == pytest.approx(1.499)
+    for name in ("displayed_force_n", "proximal_rad", "pressure", "hand_tank_j",
+                 "audit_operator_delivered_j", "delay_controller_to_hand_s"):
+        a, b = getattr(cut, name), getattr(base, name)
+        assert a.shape[0] == 1500 and np.array_equal(a, b[:1500], equal_nan=True), name
