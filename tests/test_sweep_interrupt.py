@@ -9,16 +9,11 @@ table, writes the JSON and plot, and exits 130.
 from __future__ import annotations
 
 import json
-import os
 import re
-import signal
-import subprocess
-import sys
-import threading
-import time
 from pathlib import Path
 
 import pytest
+from ctrl_c import interrupt_when
 from test_sweep import fake_runner
 from test_sweep_grid import SMALL, _fake_endurance
 from test_sweep_grid import fake_runner as grid_runner
@@ -90,42 +85,19 @@ def test_an_interrupted_grid_and_endurance_keep_theirs_in_point_order() -> None:
     assert end.interrupted and [r.point.delay_s for r in end.runs] == [0.0]
 
 
-def _progress_reader(stream, seen: list[str]) -> threading.Thread:  # noqa: ANN001
-    def read() -> None:
-        while chunk := stream.read1(4096) if hasattr(stream, "read1") else stream.read(1):
-            seen.append(chunk.decode(errors="replace"))
-    t = threading.Thread(target=read, daemon=True)
-    t.start()
-    return t
-
-
 def test_ctrl_c_on_teleop_sweep_writes_the_finished_runs_and_exits_130(tmp_path: Path) -> None:
     """The real command, its spawned workers, and Ctrl-C as a terminal sends it (SIGINT to
     the whole process group) once two runs are done."""
     out = tmp_path / "sweep.json"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "teleop.cli", "sweep", "--jobs", "2", "--duration", "1",
-         "--delays", "0,0.01,0.02,0.05,0.1,0.2", "--losses", "0", "--controllers",
-         "two-layer,direct", "--refine", "0", "--json", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
-    seen: list[str] = []
-    reader = _progress_reader(proc.stderr, seen)
-    try:
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline:
-            done = [int(m) for m in re.findall(r" (\d+)/12 ", "".join(seen))]
-            if done and max(done) >= 2 or proc.poll() is not None:
-                break
-            time.sleep(0.05)
-        assert proc.poll() is None, "the sweep ended before it could be interrupted"
-        os.killpg(proc.pid, signal.SIGINT)
-        proc.wait(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    reader.join(timeout=5)
-    err = "".join(seen)
-    assert proc.returncode == 130, err[-500:]
+
+    def two_done(err: str) -> bool:
+        return max((int(m) for m in re.findall(r" (\d+)/12 ", err)), default=0) >= 2
+
+    code, _, err = interrupt_when(
+        ["sweep", "--jobs", "2", "--duration", "1", "--delays", "0,0.01,0.02,0.05,0.1,0.2",
+         "--losses", "0", "--controllers", "two-layer,direct", "--refine", "0",
+         "--json", str(out)], two_done)
+    assert code == 130, err[-500:]
     assert "interrupted; the" in err.splitlines()[-1]
     doc = json.loads(out.read_text())
     assert doc["interrupted"] is True and 2 <= len(doc["runs"]) < 12
