@@ -13,6 +13,7 @@ Command line (lockstep, virtual time)::
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,8 +79,12 @@ def format_budget(rows: tuple[GraspBudget, ...]) -> str:
                      f"{b.hand_ledger_net_j:>+14.3f} {b.master_ledger_net_j:>+16.4f} "
                      f"{b.stores_change_j:>+9.3f} {b.peak_pressure:>7.0f}")
     peaks = [b.peak_pressure for b in rows]
-    if peaks and peaks[0] > 0:
-        lines.append(f"weakest over the first (peak pressure): {min(peaks) / peaks[0]:.2f}")
+    if peaks and peaks[0] > 0:  # (a nan first peak fails the test: no reference)
+        seen = [p for p in peaks if math.isfinite(p)]
+        blank = len(peaks) - len(seen)
+        lines.append(f"weakest over the first (peak pressure): {min(seen) / peaks[0]:.2f}"
+                     + (f" ({blank} of {len(peaks)} cycles without pressure samples)"
+                        if blank else ""))
     after = after_first(peaks, [b.index for b in rows], "peak_pressure")
     if after is not None:
         lines.append(after.describe())

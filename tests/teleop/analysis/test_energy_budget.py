@@ -51,6 +51,11 @@ def test_the_table_ends_with_the_weakest_grasp_and_the_first_against_the_next_th
     short = format_budget(tuple(row(k + 1, 600.0) for k in range(3)))
     assert "after the first" not in short and "weakest over the first (peak pressure): 1.00" \
         in short
+    # a cycle without samples (a nan peak) is said, not silently passed over (as min() did)
+    for holes in ((226.0, float("nan"), 180.0), (226.0, 180.0, float("nan"))):
+        text = format_budget(tuple(row(k + 1, p) for k, p in enumerate(holes)))
+        assert ("weakest over the first (peak pressure): 0.80 (1 of 3 cycles without "
+                "pressure samples)") in text, text
 
 
 def test_bad_cycle_is_refused() -> None:
