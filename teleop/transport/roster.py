@@ -92,29 +92,36 @@ def refusal(role: str, session: str, replies: Iterable[RosterReply]) -> str | No
             f"with another session.name")
 
 
-def ask(session: Any, session_name: str, connected: Callable[[], bool],
+def ask(session: Any, session_name: str, peers: Callable[[], set[str]], expected: int = 1,
         window_s: float = CONNECT_WINDOW_S, grace_s: float = ANSWER_GRACE_S,
         clock: Callable[[], float] = time.monotonic) -> tuple[RosterReply, ...]:
-    """Query every roster in ``session_name`` over the open zenoh ``session`` until an answer
-    comes, or ``grace_s`` after a peer is ``connected()``, or ``window_s`` without one."""
+    """Query every roster in ``session_name`` over the open zenoh ``session`` until every
+    connected peer (``peers()``: their ids) has answered once ``expected`` of them are
+    connected (one per connect endpoint), or ``grace_s`` after that for a peer that does not
+    answer, or ``window_s`` in all; the last query's answers.
+
+    Not the first answer alone: with two endpoints the first link up answers before the
+    second is connected, and the services only the second reaches went unasked (a CI run
+    got the controller's answer without the hand's)."""
     t0 = clock()
-    seen_peer_s: float | None = None
+    all_connected_s: float | None = None
     pattern = roster_pattern(session_name)
     while True:
-        replies = []
+        connected = peers()  # before the query: a peer counted here is asked by it
+        answers: dict[str, RosterReply] = {}  # one query's: a snapshot, not a collection
         for r in session.get(pattern, timeout=_GET_TIMEOUT_S,
                              consolidation=_every_answer()):
             ok = r.ok
             if ok is not None and (rep := decode_reply(ok.payload.to_bytes())) is not None:
-                replies.append(rep)
-        if replies:
-            return tuple(replies)
+                answers[str(r.replier_id)] = rep
         now = clock()
-        if seen_peer_s is None and connected():
-            seen_peer_s = now
-        if (seen_peer_s is not None and now - seen_peer_s >= grace_s) or (
-                seen_peer_s is None and now - t0 >= window_s):
-            return ()
+        if all_connected_s is None and len(connected) >= expected:
+            all_connected_s = now
+        if all_connected_s is not None and connected <= answers.keys():
+            return tuple(answers.values())
+        if (all_connected_s is not None and now - all_connected_s >= grace_s) or (
+                now - t0 >= window_s):
+            return tuple(answers.values())
         time.sleep(_POLL_S)
 
 
@@ -143,7 +150,8 @@ def probe(cfg: Any, role: str, window_s: float = CONNECT_WINDOW_S) -> tuple[Rost
     except zenoh.ZError:
         return ()  # the bus itself reports a session that cannot open, in its own words
     try:
-        return ask(session, cfg.session.name, lambda: bool(list(session.info.peers_zid())),
+        return ask(session, cfg.session.name,
+                   lambda: {str(z) for z in session.info.peers_zid()}, len(set(connect)),
                    window_s)
     finally:
         session.close()
