@@ -131,7 +131,8 @@ def nonneg_float(text: str) -> float:
 
 class FractionProgress:
     """A one-line progress bar on stderr for a run that reports the fraction done:
-    ``label``, percent, elapsed and estimated remaining wall time (nothing when disabled)."""
+    ``label``, percent, elapsed and estimated remaining wall time (nothing when disabled).
+    :meth:`draw` is the bar itself, for callers that say how much in their own words."""
 
     def __init__(self, label: str, enabled: bool = True) -> None:
         self.label, self.enabled = label, enabled and sys.stderr is not None
@@ -139,13 +140,17 @@ class FractionProgress:
         self.shown = False
 
     def __call__(self, fraction: float) -> None:
+        self.draw(fraction, f"{fraction:4.0%}", f"{self.label}  ")
+
+    def draw(self, fraction: float, amount: str, label: str) -> None:
+        """``[####....] AMOUNT ELAPSEDs eta ETAs  LABEL``, over the line drawn before."""
         if not self.enabled:
             return
         elapsed = time.perf_counter() - self.t0
         eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else 0.0
         fill = int(30 * min(max(fraction, 0.0), 1.0))
-        sys.stderr.write(f"\r[{'#' * fill}{'.' * (30 - fill)}] {fraction:4.0%} {elapsed:5.0f}s "
-                         f"eta {eta:4.0f}s  {self.label}  ")
+        sys.stderr.write(f"\r[{'#' * fill}{'.' * (30 - fill)}] {amount} {elapsed:5.0f}s "
+                         f"eta {eta:4.0f}s  {label}")
         sys.stderr.flush()
         self.shown = True
 

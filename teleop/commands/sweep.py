@@ -15,11 +15,11 @@ import argparse
 import math
 import os
 import sys
-import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import TYPE_CHECKING
 
 from teleop.commands.common import (
+    FractionProgress,
     add_config_options,
     add_json_option,
     add_output_option,
@@ -118,33 +118,23 @@ def _names(text: str | None, default: tuple[str, ...], known: tuple[str, ...]) -
 
 
 class _Progress:
-    """A one-line progress bar on stderr."""
+    """The shared progress bar (:class:`~teleop.commands.common.FractionProgress`) counting
+    runs and saying how the last one finished."""
 
     def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled and sys.stderr is not None
-        self.t0 = time.perf_counter()
+        self.bar = FractionProgress("", enabled)
 
     def __call__(self, done: int, total: int, run: SweepRun) -> None:
-        if not self.enabled:
-            return
         total = max(total, done)
-        width = 30
-        fill = int(width * done / total)
         p = run.point
         state = "stable" if run.metrics.stable else "UNSTABLE"
         state += "" if run.metrics.passive else " NOT passive"
-        elapsed = time.perf_counter() - self.t0
-        eta = elapsed * (total - done) / done if done else 0.0
-        sys.stderr.write(f"\r[{'#' * fill}{'.' * (width - fill)}] {done}/{total} "
-                         f"{elapsed:5.0f}s eta {eta:4.0f}s  {p.controller} {p.operator} "
-                         f"{p.object} {p.delay_s * 1000:.0f} ms loss {p.loss:.0%}: "
-                         f"{state}      ")
-        sys.stderr.flush()
+        self.bar.draw(done / total, f"{done}/{total}",
+                      f"{p.controller} {p.operator} {p.object} {p.delay_s * 1000:.0f} ms "
+                      f"loss {p.loss:.0%}: {state}      ")
 
     def finish(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+        self.bar.finish()
 
 
 def _quiet_transport() -> None:
